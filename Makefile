@@ -1,0 +1,49 @@
+# Two commands on a fresh machine: `make grade` and `make test`.
+# Each creates .venv when it is missing and installs robolab into it.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+
+export MPLBACKEND := Agg
+
+.PHONY: help venv test grade lab bench data lint clean
+
+help:
+	@echo "make grade   set up, then grade the example submissions (gradebook in grades/)"
+	@echo "make test    set up, then run every test (library, grader, hidden lab tests, notebooks)"
+	@echo "make lab     JupyterLab on notebooks/"
+	@echo "make bench   run the benchmarks and print their tables"
+	@echo "make data    regenerate data/ with the simulator"
+	@echo "make lint    ruff"
+
+$(STAMP): pyproject.toml
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	@touch $(STAMP)
+
+venv: $(STAMP)
+
+test: $(STAMP)
+	$(BIN)/python -m pytest
+	$(BIN)/robolab solve notebooks/ -o build/solved
+	$(BIN)/python -m pytest --nbval-lax --nbval-cell-timeout=120 -p no:cacheprovider build/solved -o testpaths=build/solved -o addopts=""
+
+grade: $(STAMP)
+	$(BIN)/robolab grade examples/submissions/*/*.ipynb --out grades/ -j 2
+
+lab: $(STAMP)
+	$(BIN)/jupyter lab notebooks/
+
+bench: $(STAMP)
+	@for b in benchmarks/*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
+
+data: $(STAMP)
+	$(BIN)/robolab data --out data/
+
+lint: $(STAMP)
+	$(BIN)/ruff check robolab solutions tests benchmarks
+
+clean:
+	rm -rf $(VENV) build grades .pytest_cache

@@ -1,0 +1,57 @@
+"""Shared machinery for visible checks: one way to report success and failure."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+
+class CheckFailed(AssertionError):
+    """A visible check found a problem; the message says what and how to look into it."""
+
+
+def passed(name: str, detail: str = "") -> None:
+    """Print the friendly success line for check ``name``."""
+    print(f"\u2714 {name}: ok" + (f" ({detail})" if detail else ""))
+
+
+def check(func):
+    """Decorate a visible check: NotImplementedError and exceptions become a friendly CheckFailed."""
+
+    @functools.wraps(func)
+    def wrapper(student_function, *args, **kwargs):
+        name = getattr(student_function, "__name__", "function")
+        try:
+            result = func(student_function, *args, **kwargs)
+        except NotImplementedError:
+            raise CheckFailed(f"{name} is not implemented yet: replace `raise NotImplementedError` with your code") from None
+        except CheckFailed:
+            raise
+        except Exception as exc:  # the student's code raised: show it plainly
+            raise CheckFailed(f"{name} raised {type(exc).__name__}: {exc}") from exc
+        passed(name)
+        return result
+
+    return wrapper
+
+
+def expect_close(what: str, got, expected, *, atol: float = 1e-8, rtol: float = 1e-6) -> None:
+    """Raise CheckFailed unless ``got`` equals ``expected`` within tolerance (compared as float arrays)."""
+    try:
+        g = np.asarray(got, dtype=float)
+    except (TypeError, ValueError):
+        raise CheckFailed(f"{what}: expected numbers, got {type(got).__name__}") from None
+    e = np.asarray(expected, dtype=float)
+    if g.shape != e.shape:
+        raise CheckFailed(f"{what}: expected shape {e.shape}, got {g.shape}")
+    if not np.allclose(g, e, atol=atol, rtol=rtol, equal_nan=False):
+        raise CheckFailed(f"{what}: expected {np.array2string(e, precision=4)}, got {np.array2string(g, precision=4)}")
+
+
+def expect_shape(what: str, got, shape) -> np.ndarray:
+    """Raise CheckFailed unless ``got`` is an array of ``shape``; return it as a float array."""
+    g = np.asarray(got, dtype=float)
+    if g.shape != tuple(shape):
+        raise CheckFailed(f"{what}: expected shape {tuple(shape)}, got {g.shape}")
+    return g

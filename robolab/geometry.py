@@ -1,0 +1,115 @@
+"""Angles, 2D poses and rigid transforms: the one home for frame arithmetic.
+
+Conventions (REP-103): x forward, y left, angles counter-clockwise in radians.
+A pose ``(x, y, theta)`` places a child frame in a parent frame; many poses are
+an ``(N, 3)`` array. Angles are wrapped to ``[-pi, pi)`` by :func:`wrap_angle`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from robolab.validation import as_array, as_poses
+
+__all__ = [
+    "wrap_angle",
+    "angle_diff",
+    "compose",
+    "inverse",
+    "relative",
+    "transform_points",
+    "rotation_matrix",
+    "yaw_from_quaternion",
+    "quaternion_from_yaw",
+]
+
+
+def wrap_angle(angle):
+    """Wrap angles to ``[-pi, pi)``.
+
+    ``wrap_angle(pi) == -pi``; works elementwise on arrays and returns a float
+    for a scalar.
+    """
+    a = np.asarray(angle, dtype=float)
+    wrapped = (a + np.pi) % (2.0 * np.pi) - np.pi
+    return float(wrapped) if wrapped.ndim == 0 else wrapped
+
+
+def angle_diff(a, b):
+    """Shortest signed difference ``a - b`` wrapped to ``[-pi, pi)``."""
+    return wrap_angle(np.asarray(a, dtype=float) - np.asarray(b, dtype=float))
+
+
+def rotation_matrix(theta) -> np.ndarray:
+    """2 x 2 rotation matrix (or ``(..., 2, 2)`` stack) for angle(s) ``theta``."""
+    t = np.asarray(theta, dtype=float)
+    c, s = np.cos(t), np.sin(t)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def compose(a, b) -> np.ndarray:
+    """Pose composition ``a (+) b``: pose ``b`` given in frame ``a``, expressed in ``a``'s parent.
+
+    Broadcasts over leading dimensions; the result's angle is wrapped.
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    c, s = np.cos(a[..., 2]), np.sin(a[..., 2])
+    x = a[..., 0] + c * b[..., 0] - s * b[..., 1]
+    y = a[..., 1] + s * b[..., 0] + c * b[..., 1]
+    return np.stack([x, y, wrap_angle(a[..., 2] + b[..., 2])], -1)
+
+
+def inverse(p) -> np.ndarray:
+    """Inverse pose: ``compose(p, inverse(p)) == (0, 0, 0)``."""
+    p = np.asarray(p, dtype=float)
+    c, s = np.cos(p[..., 2]), np.sin(p[..., 2])
+    x = -c * p[..., 0] - s * p[..., 1]
+    y = s * p[..., 0] - c * p[..., 1]
+    return np.stack([x, y, wrap_angle(-p[..., 2])], -1)
+
+
+def relative(a, b) -> np.ndarray:
+    """Pose of ``b`` in the frame of ``a``: ``inverse(a) (+) b``."""
+    return compose(inverse(a), b)
+
+
+def transform_points(points, pose) -> np.ndarray:
+    """Map points from a child frame into its parent, given the child's pose in the parent.
+
+    Parameters
+    ----------
+    points : array_like, shape (P, 2)
+        Points in the child frame.
+    pose : array_like, shape (3,) or (N, 3)
+        The child frame's pose ``(x, y, theta)`` in the parent frame.
+
+    Returns
+    -------
+    numpy.ndarray, shape (P, 2) for one pose, (N, P, 2) for N poses
+        ``R(theta) p + t`` for every point.
+    """
+    pts = as_array("points", points, ndim=2)
+    if pts.shape[1] != 2:
+        raise ValueError(f"points must have shape (P, 2), got {pts.shape}")
+    single = np.ndim(pose) == 1
+    poses = as_poses("pose", pose)
+    c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
+    x = poses[:, 0:1] + c * pts[:, 0] - s * pts[:, 1]
+    y = poses[:, 1:2] + s * pts[:, 0] + c * pts[:, 1]
+    out = np.stack([x, y], -1)
+    return out[0] if single else out
+
+
+def yaw_from_quaternion(x, y, z, w):
+    """Yaw (rotation about z) of a unit quaternion, elementwise."""
+    x, y, z, w = (np.asarray(v, dtype=float) for v in (x, y, z, w))
+    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return float(yaw) if yaw.ndim == 0 else yaw
+
+
+def quaternion_from_yaw(yaw) -> np.ndarray:
+    """Unit quaternion ``(x, y, z, w)`` for a rotation ``yaw`` about z; shape ``(..., 4)``."""
+    h = 0.5 * np.asarray(yaw, dtype=float)
+    zeros = np.zeros_like(h)
+    return np.stack([zeros, zeros, np.sin(h), np.cos(h)], -1)

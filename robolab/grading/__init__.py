@@ -1,0 +1,1 @@
+"""The autograder: notebook loading, isolated execution, scoring, reports, release and export."""

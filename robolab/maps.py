@@ -1,0 +1,308 @@
+"""Occupancy grids: the map type, image and ROS map_server I/O, and cell <-> world conversion.
+
+Storage convention: ``data[row, col]`` with ``row`` growing with y and ``col``
+with x, so that ``data[0, 0]`` is the cell at the map origin (the lower-left
+corner in a map_server file). Images store row 0 at the top; the loaders flip
+them. Cell values are occupancy probabilities in [0, 1], or ``-1`` for unknown.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+from PIL import Image, UnidentifiedImageError
+
+from robolab.validation import as_array, check_positive
+
+__all__ = [
+    "OccupancyGrid",
+    "MapFormatError",
+    "UNKNOWN",
+    "load_map",
+    "save_map",
+    "image_to_occupancy",
+    "load_maze",
+]
+
+#: Cell value for unknown space.
+UNKNOWN = -1.0
+
+_IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".bmp", ".tif", ".tiff"}
+
+
+class MapFormatError(ValueError):
+    """A map file is missing, unreadable, or lacks what the format requires."""
+
+
+@dataclass(frozen=True, eq=False)
+class OccupancyGrid:
+    """A 2D occupancy grid.
+
+    Parameters
+    ----------
+    data : array_like, shape (H, W)
+        Occupancy in [0, 1] (1 = occupied) or -1 for unknown; ``data[row, col]``,
+        row = y index, col = x index, row 0 at the origin.
+    resolution : float
+        Cell size in metres per cell.
+    origin : (x, y, theta)
+        World pose of the lower-left corner of cell ``(0, 0)``, as in map_server.
+    occupied_threshold : float
+        A cell with ``data >= occupied_threshold`` counts as an obstacle for ray
+        casting and distance fields.
+    """
+
+    data: np.ndarray
+    resolution: float
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    occupied_threshold: float = 0.5
+
+    def __post_init__(self):
+        data = as_array("data", self.data, ndim=2)
+        if data.size == 0:
+            raise ValueError("data must be a non-empty 2D array")
+        known = data[data != UNKNOWN]
+        if np.any(~np.isfinite(known)) or np.any((known < 0) | (known > 1)):
+            raise ValueError("data values must be occupancy probabilities in [0, 1] or -1 (unknown)")
+        origin = as_array("origin", self.origin, shape=(3,), finite=True)
+        object.__setattr__(self, "data", data)
+        object.__setattr__(self, "resolution", check_positive("resolution", self.resolution))
+        object.__setattr__(self, "origin", origin)
+        if not 0 < self.occupied_threshold <= 1:
+            raise ValueError(f"occupied_threshold must be in (0, 1], got {self.occupied_threshold}")
+
+    # -- shape ---------------------------------------------------------------------
+    @property
+    def shape(self) -> tuple[int, int]:
+        """``(rows, cols)`` = ``(H, W)``."""
+        return self.data.shape
+
+    @property
+    def width(self) -> float:
+        """Extent along the map's x axis, metres."""
+        return self.data.shape[1] * self.resolution
+
+    @property
+    def height(self) -> float:
+        """Extent along the map's y axis, metres."""
+        return self.data.shape[0] * self.resolution
+
+    @property
+    def extent(self) -> tuple[float, float, float, float]:
+        """``(left, right, bottom, top)`` in world metres, for ``imshow(..., origin='lower')``.
+
+        Only meaningful when the origin's yaw is 0.
+        """
+        x0, y0 = self.origin[:2]
+        return (x0, x0 + self.width, y0, y0 + self.height)
+
+    @property
+    def occupied(self) -> np.ndarray:
+        """Boolean mask of obstacle cells (``data >= occupied_threshold``)."""
+        return self.data >= self.occupied_threshold
+
+    @property
+    def free(self) -> np.ndarray:
+        """Boolean mask of known free cells (``0 <= data < occupied_threshold``)."""
+        return (self.data >= 0) & (self.data < self.occupied_threshold)
+
+    @property
+    def unknown(self) -> np.ndarray:
+        """Boolean mask of unknown cells."""
+        return self.data == UNKNOWN
+
+    # -- conversion: the one place that maps between cells and metres ------------------
+    def world_to_map(self, xy) -> np.ndarray:
+        """Continuous map coordinates (in cells) of world points: ``(..., 2)`` -> ``(..., 2)`` as (col, row)."""
+        p = np.asarray(xy, dtype=float)
+        d = p - self.origin[:2]
+        c, s = np.cos(self.origin[2]), np.sin(self.origin[2])
+        u = (c * d[..., 0] + s * d[..., 1]) / self.resolution
+        v = (-s * d[..., 0] + c * d[..., 1]) / self.resolution
+        return np.stack([u, v], -1)
+
+    def world_to_cell(self, xy) -> np.ndarray:
+        """Integer cell indices ``(..., 2)`` as ``(row, col)`` of world points ``(..., 2)``.
+
+        Indices may lie outside the grid; use :meth:`contains_cell` to test.
+        """
+        uv = np.floor(self.world_to_map(xy)).astype(np.int64)
+        return np.stack([uv[..., 1], uv[..., 0]], -1)
+
+    def cell_to_world(self, cells) -> np.ndarray:
+        """World coordinates ``(..., 2)`` of the centres of cells given as ``(row, col)``."""
+        rc = np.asarray(cells, dtype=float)
+        u = (rc[..., 1] + 0.5) * self.resolution
+        v = (rc[..., 0] + 0.5) * self.resolution
+        c, s = np.cos(self.origin[2]), np.sin(self.origin[2])
+        return np.stack([self.origin[0] + c * u - s * v, self.origin[1] + s * u + c * v], -1)
+
+    def contains_cell(self, cells) -> np.ndarray:
+        """Boolean mask: which ``(row, col)`` indices lie inside the grid."""
+        rc = np.asarray(cells)
+        return (rc[..., 0] >= 0) & (rc[..., 0] < self.shape[0]) & (rc[..., 1] >= 0) & (rc[..., 1] < self.shape[1])
+
+    def contains(self, xy) -> np.ndarray:
+        """Boolean mask: which world points lie inside the grid."""
+        return self.contains_cell(self.world_to_cell(xy))
+
+    def cell_centers(self) -> tuple[np.ndarray, np.ndarray]:
+        """World x and y of every cell centre, each of shape ``(H, W)``."""
+        rows, cols = np.indices(self.shape)
+        xy = self.cell_to_world(np.stack([rows, cols], -1))
+        return xy[..., 0], xy[..., 1]
+
+    def with_data(self, data) -> OccupancyGrid:
+        """A grid with the same geometry and new cell values."""
+        return OccupancyGrid(data, self.resolution, self.origin.copy(), self.occupied_threshold)
+
+
+def image_to_occupancy(image: np.ndarray, level: float = 0.5) -> np.ndarray:
+    """Binary occupancy from an image, like MATLAB's ``1 - im2bw(A, level)``.
+
+    Luminance (ITU-R BT.601 weights, as MATLAB's rgb2gray) above ``level`` is free
+    (0), the rest occupied (1). Returns rows in image order (row 0 at the top).
+    """
+    img = np.asarray(image)
+    if img.ndim == 3:
+        img = img[..., :3].astype(float) @ np.array([0.2989, 0.5870, 0.1140])
+    scale = 65535.0 if np.asarray(image).dtype == np.uint16 else 255.0
+    lum = img.astype(float) / scale
+    return (lum <= level).astype(float)
+
+
+def _read_image(path: Path) -> np.ndarray:
+    if not path.is_file():
+        raise MapFormatError(f"map image {str(path)!r} does not exist")
+    try:
+        with Image.open(path) as im:
+            im.load()
+            if im.mode not in ("L", "RGB", "RGBA", "I;16", "1", "P", "LA"):
+                im = im.convert("RGB")
+            elif im.mode in ("P", "1", "LA"):
+                im = im.convert("L")
+            return np.array(im)
+    except (UnidentifiedImageError, OSError, SyntaxError) as exc:
+        raise MapFormatError(f"map image {str(path)!r} is not a readable image: {exc}") from exc
+
+
+def load_map(path, *, resolution: float = 1.0, origin=(0.0, 0.0, 0.0), level: float = 0.5) -> OccupancyGrid:
+    """Load an occupancy grid from an image or a ROS map_server YAML file.
+
+    Parameters
+    ----------
+    path : str or Path
+        A ``.yaml``/``.yml`` map_server description, or an image (PNG, JPG, PGM
+        P5 grey or P6 RGB, ...).
+    resolution, origin : optional
+        For a bare image only: metres per pixel (default 1, pixel units as in
+        the measurement-model lab) and the origin pose.
+    level : float
+        For a bare image only: luminance threshold, as MATLAB's ``im2bw(A, level)``.
+
+    Returns
+    -------
+    OccupancyGrid
+        Row 0 of the result is the bottom row of the image.
+
+    Raises
+    ------
+    MapFormatError
+        Missing or unreadable file, YAML without the required keys, bad values.
+    """
+    path = Path(path)
+    if path.suffix.lower() in (".yaml", ".yml"):
+        return _load_map_server(path)
+    if path.suffix.lower() not in _IMAGE_SUFFIXES:
+        raise MapFormatError(f"{str(path)!r}: unknown map format {path.suffix!r}; expected .yaml or an image")
+    occ = image_to_occupancy(_read_image(path), level)
+    return OccupancyGrid(np.flipud(occ), resolution, np.asarray(origin, dtype=float))
+
+
+def _load_map_server(path: Path) -> OccupancyGrid:
+    if not path.is_file():
+        raise MapFormatError(f"map file {str(path)!r} does not exist")
+    try:
+        meta = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise MapFormatError(f"map file {str(path)!r} is not valid YAML: {exc}") from exc
+    if not isinstance(meta, dict):
+        raise MapFormatError(f"map file {str(path)!r} must be a YAML mapping with image, resolution and origin")
+    missing = [k for k in ("image", "resolution", "origin") if k not in meta]
+    if missing:
+        raise MapFormatError(f"map file {str(path)!r} lacks required key(s): {', '.join(missing)}")
+    try:
+        resolution = float(meta["resolution"])
+        origin = np.asarray(meta["origin"], dtype=float)
+        negate = int(meta.get("negate", 0))
+        occ_th = float(meta.get("occupied_thresh", 0.65))
+        free_th = float(meta.get("free_thresh", 0.196))
+    except (TypeError, ValueError) as exc:
+        raise MapFormatError(f"map file {str(path)!r} has a non-numeric value: {exc}") from exc
+    if origin.shape != (3,):
+        raise MapFormatError(f"map file {str(path)!r}: origin must be [x, y, yaw], got {meta['origin']!r}")
+    if resolution <= 0:
+        raise MapFormatError(f"map file {str(path)!r}: resolution must be > 0, got {resolution}")
+    if not 0 <= free_th < occ_th <= 1:
+        raise MapFormatError(f"map file {str(path)!r}: need 0 <= free_thresh < occupied_thresh <= 1")
+    mode = str(meta.get("mode", "trinary"))
+    if mode not in ("trinary", "scale"):
+        raise MapFormatError(f"map file {str(path)!r}: mode {mode!r} not supported (trinary or scale)")
+    image_path = Path(meta["image"])
+    if not image_path.is_absolute():
+        image_path = path.parent / image_path
+    img = _read_image(image_path).astype(float)
+    if img.ndim == 3:  # map_server averages the colour channels
+        img = img[..., :3].mean(axis=-1)
+    # map_server: p = (255 - x) / 255 is the occupancy probability unless negated.
+    p = img / 255.0 if negate else (255.0 - img) / 255.0
+    data = np.full(p.shape, UNKNOWN)
+    data[p > occ_th] = 1.0
+    data[p < free_th] = 0.0
+    if mode == "scale":
+        between = (p >= free_th) & (p <= occ_th)
+        data[between] = (p[between] - free_th) / (occ_th - free_th)
+    return OccupancyGrid(np.flipud(data), resolution, origin)
+
+
+def save_map(grid: OccupancyGrid, yaml_path, *, occupied_thresh: float = 0.65, free_thresh: float = 0.196) -> Path:
+    """Write ``grid`` as map_server YAML + binary PGM (P5), like ``map_saver``.
+
+    Occupied cells (``>= occupied_thresh``) become 0, free cells (``<= free_thresh``)
+    254 and the rest (unknown or in between) 205. Returns the YAML path.
+    """
+    if not isinstance(grid, OccupancyGrid):
+        raise TypeError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
+    yaml_path = Path(yaml_path)
+    if yaml_path.suffix.lower() not in (".yaml", ".yml"):
+        raise ValueError(f"yaml_path must end in .yaml or .yml, got {str(yaml_path)!r}")
+    pgm_path = yaml_path.with_suffix(".pgm")
+    d = grid.data
+    img = np.full(d.shape, 205, dtype=np.uint8)
+    img[(d >= 0) & (d <= free_thresh)] = 254
+    img[d >= occupied_thresh] = 0
+    yaml_path.parent.mkdir(parents=True, exist_ok=True)
+    Image.fromarray(np.flipud(img), mode="L").save(pgm_path)
+    meta = {
+        "image": pgm_path.name,
+        "resolution": float(grid.resolution),
+        "origin": [float(v) for v in grid.origin],
+        "negate": 0,
+        "occupied_thresh": occupied_thresh,
+        "free_thresh": free_thresh,
+    }
+    yaml_path.write_text(yaml.safe_dump(meta, sort_keys=False))
+    return yaml_path
+
+
+def load_maze() -> OccupancyGrid:
+    """The bundled maze of the measurement-model lab (``data/maze.yaml`` + ``data/maze.png``)."""
+    from robolab import DATA_DIR
+
+    path = DATA_DIR / "maze.yaml"
+    if not path.is_file():
+        raise MapFormatError(f"the bundled maze {str(path)!r} is missing; run `robolab data` to make it")
+    return load_map(path)

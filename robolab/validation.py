@@ -1,0 +1,110 @@
+"""Argument checks shared by the library and the reference solutions.
+
+Every public function validates its inputs with these helpers so that bad
+input fails early with a message naming the argument and what was expected,
+instead of broadcasting silently or returning NaN.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+__all__ = ["as_array", "as_poses", "check_positive", "check_probability_vector"]
+
+
+def _shape_text(shape: Sequence[int | None]) -> str:
+    return "(" + ", ".join("N" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+
+
+def as_array(
+    name: str,
+    value,
+    *,
+    ndim: int | Sequence[int] | None = None,
+    shape: Sequence[int | None] | None = None,
+    dtype=float,
+    finite: bool = False,
+    nonnegative: bool = False,
+) -> np.ndarray:
+    """Convert ``value`` to an array and check it.
+
+    Parameters
+    ----------
+    name : str
+        The argument's name, used in error messages.
+    value : array_like
+        What the caller passed.
+    ndim : int or sequence of int, optional
+        Allowed numbers of dimensions.
+    shape : sequence of int or None, optional
+        Expected shape; ``None`` entries match any length.
+    dtype : numpy dtype, optional
+        Target dtype (default float64). Values that cannot be converted raise.
+    finite : bool
+        Reject NaN and infinity.
+    nonnegative : bool
+        Reject negative values.
+
+    Returns
+    -------
+    numpy.ndarray
+
+    Raises
+    ------
+    TypeError
+        When ``value`` cannot be converted to ``dtype``.
+    ValueError
+        When the shape, dimensionality or values are not as expected.
+    """
+    try:
+        arr = np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be numeric array-like, got {type(value).__name__}") from exc
+    if ndim is not None:
+        allowed = (ndim,) if isinstance(ndim, int) else tuple(ndim)
+        if arr.ndim not in allowed:
+            raise ValueError(f"{name} must have {' or '.join(map(str, allowed))} dimension(s), got shape {arr.shape}")
+    if shape is not None:
+        if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+            raise ValueError(f"{name} must have shape {_shape_text(shape)}, got {arr.shape}")
+    if finite and not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    if nonnegative and np.any(arr < 0):
+        raise ValueError(f"{name} must be non-negative, got minimum {np.min(arr)}")
+    return arr
+
+
+def as_poses(name: str, value) -> np.ndarray:
+    """Return ``value`` as a float array of poses ``(N, 3)``; a single pose ``(3,)`` becomes ``(1, 3)``."""
+    arr = as_array(name, value, ndim=(1, 2), finite=True)
+    if arr.ndim == 1:
+        arr = arr[None, :]
+    if arr.shape[-1] != 3:
+        raise ValueError(f"{name} must be a pose (x, y, theta) or an (N, 3) array of poses, got shape {arr.shape}")
+    return arr
+
+
+def check_positive(name: str, value, *, allow_zero: bool = False) -> float:
+    """Return ``value`` as a float, raising ValueError unless it is finite and > 0 (or >= 0)."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from exc
+    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise ValueError(f"{name} must be {'>= 0' if allow_zero else '> 0'} and finite, got {value!r}")
+    return v
+
+
+def check_probability_vector(name: str, value, *, axis: int = -1, atol: float = 1e-9) -> np.ndarray:
+    """Return ``value`` as a float array whose entries are in [0, 1] and sum to 1 along ``axis``."""
+    arr = as_array(name, value, finite=True)
+    if arr.ndim == 0:
+        raise ValueError(f"{name} must be a probability vector, got a scalar")
+    if np.any(arr < 0):
+        raise ValueError(f"{name} must be non-negative, got minimum {arr.min()}")
+    sums = arr.sum(axis=axis)
+    if not np.allclose(sums, 1.0, atol=atol, rtol=0):
+        raise ValueError(f"{name} must sum to 1 along axis {axis}, got {np.ravel(sums)[:3]}")
+    return arr
