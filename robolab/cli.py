@@ -29,6 +29,8 @@ def _build_parser() -> argparse.ArgumentParser:
     g.add_argument("--lab", default=None, help="lab name (default: read from each notebook's metadata)")
     g.add_argument("--out", type=Path, default=Path("grades"), help="folder for gradebook and feedback")
     g.add_argument("-j", "--jobs", type=int, default=1, help="submissions graded in parallel")
+    g.add_argument("--timeout", type=float, default=None, metavar="SECONDS",
+                   help="overall time limit per submission (default 600)")
 
     c = sub.add_parser("check", help="run a notebook's visible checks (for students)")
     c.add_argument("notebook", type=Path)
@@ -56,7 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     from robolab.grading import commands
 
     if args.command == "grade":
-        return commands.grade(args.submissions, lab=args.lab, out=args.out, jobs=args.jobs)
+        return commands.grade(args.submissions, lab=args.lab, out=args.out, jobs=args.jobs,
+                              timeout=args.timeout)
     if args.command == "check":
         return commands.check(args.notebook)
     if args.command == "solve":
