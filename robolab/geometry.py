@@ -32,6 +32,8 @@ def wrap_angle(angle):
     """
     a = np.asarray(angle, dtype=float)
     wrapped = (a + np.pi) % (2.0 * np.pi) - np.pi
+    # Just below -pi, (a + pi) % 2pi rounds up to 2pi and the result would be +pi.
+    wrapped = np.where(wrapped >= np.pi, wrapped - 2.0 * np.pi, wrapped)
     return float(wrapped) if wrapped.ndim == 0 else wrapped
 
 
@@ -102,10 +104,9 @@ def transform_points(points, pose) -> np.ndarray:
 
 
 def yaw_from_quaternion(x, y, z, w):
-    """Yaw (rotation about z) of a unit quaternion, elementwise."""
+    """Yaw (rotation about z) of a unit quaternion, elementwise, wrapped to ``[-pi, pi)``."""
     x, y, z, w = (np.asarray(v, dtype=float) for v in (x, y, z, w))
-    yaw = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return float(yaw) if yaw.ndim == 0 else yaw
+    return wrap_angle(np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z)))
 
 
 def quaternion_from_yaw(yaw) -> np.ndarray:

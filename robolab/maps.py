@@ -53,6 +53,11 @@ class OccupancyGrid:
     occupied_threshold : float
         A cell with ``data >= occupied_threshold`` counts as an obstacle for ray
         casting and distance fields.
+
+    Notes
+    -----
+    The grid keeps a read-only copy of ``data``; use :meth:`with_data` to make an
+    updated map.
     """
 
     data: np.ndarray
@@ -68,6 +73,10 @@ class OccupancyGrid:
         if np.any(~np.isfinite(known)) or np.any((known < 0) | (known > 1)):
             raise ValueError("data values must be occupancy probabilities in [0, 1] or -1 (unknown)")
         origin = as_array("origin", self.origin, shape=(3,), finite=True)
+        # A grid is immutable: caches keyed on it (ray casting, distance fields) stay
+        # valid, and an update makes a new grid with `with_data`.
+        data = np.array(data, dtype=float, copy=True)
+        data.setflags(write=False)
         object.__setattr__(self, "data", data)
         object.__setattr__(self, "resolution", check_positive("resolution", self.resolution))
         object.__setattr__(self, "origin", origin)
@@ -226,8 +235,8 @@ def _load_map_server(path: Path) -> OccupancyGrid:
     if not path.is_file():
         raise MapFormatError(f"map file {str(path)!r} does not exist")
     try:
-        meta = yaml.safe_load(path.read_text())
-    except yaml.YAMLError as exc:
+        meta = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise MapFormatError(f"map file {str(path)!r} is not valid YAML: {exc}") from exc
     if not isinstance(meta, dict):
         raise MapFormatError(f"map file {str(path)!r} must be a YAML mapping with image, resolution and origin")
@@ -242,6 +251,8 @@ def _load_map_server(path: Path) -> OccupancyGrid:
         free_th = float(meta.get("free_thresh", 0.196))
     except (TypeError, ValueError) as exc:
         raise MapFormatError(f"map file {str(path)!r} has a non-numeric value: {exc}") from exc
+    if not np.isfinite(resolution) or not np.all(np.isfinite(origin)):
+        raise MapFormatError(f"map file {str(path)!r}: resolution and origin must be finite numbers")
     if origin.shape != (3,):
         raise MapFormatError(f"map file {str(path)!r}: origin must be [x, y, yaw], got {meta['origin']!r}")
     if resolution <= 0:

@@ -58,6 +58,8 @@ def as_array(
     ValueError
         When the shape, dimensionality or values are not as expected.
     """
+    if value is None:  # np.asarray(None, float) would silently be NaN
+        raise TypeError(f"{name} must be numeric array-like, got None")
     try:
         arr = np.asarray(value, dtype=dtype)
     except (TypeError, ValueError) as exc:
