@@ -171,9 +171,12 @@ def failure_message(exc: BaseException | None, crash_message: str | None) -> str
     message of its own.
     """
     student_tb = getattr(exc, "student_traceback", None)
+    message = getattr(exc, "message", None)
     if student_tb:
         kind = getattr(exc, "kind", None) or type(exc).__name__
-        text = f"{kind}: {getattr(exc, 'message', exc)}\n{student_tb}"
+        text = f"{kind}: {message}\n{student_tb}" if message else f"{kind}\n{student_tb}"
+    elif student_tb is not None and isinstance(message, str):
+        text = message  # the proxy's own words: a crash, a timeout, a result that is not plain data
     else:
         text = crash_message or (f"{type(exc).__name__}: {exc}" if exc is not None else "")
         head = _REWRITE_TAIL.sub("", text)
