@@ -909,7 +909,7 @@ def _ros1_typestore():
 
 
 class BagWriter:
-    """Write a ROS1 bag (format v2.0, uncompressed) with scans, odometry, TF and poses.
+    """Write a ROS1 bag (format v2.0) with scans, odometry, TF and poses.
 
     Parameters
     ----------
@@ -920,6 +920,9 @@ class BagWriter:
         ``with`` block the temporary file is deleted and ``path`` is left untouched.
     overwrite : bool
         When False, an existing ``path`` raises FileExistsError.
+    compression : {None, "lz4", "bz2"}
+        Chunk compression, as ``rosbag record --lz4`` / ``--bz2`` write it. The file
+        still starts with ``#ROSBAG V2.0``; readers decompress transparently.
 
     Notes
     -----
@@ -934,8 +937,13 @@ class BagWriter:
     ...                    range_min=0.02, range_max=5.0, frame_id="base_laser_link")
     """
 
-    def __init__(self, path, *, overwrite: bool = True):
+    def __init__(self, path, *, overwrite: bool = True, compression: str | None = None):
         from rosbags.rosbag1 import Writer
+
+        fmt = Writer.CompressionFormat
+        formats = {None: None, "lz4": fmt.LZ4, "bz2": fmt.BZ2}
+        if compression not in formats:
+            raise ValueError(f"compression must be None, 'lz4' or 'bz2', got {compression!r}")
 
         self.path = Path(path)
         if self.path.suffix != ".bag":
@@ -951,6 +959,8 @@ class BagWriter:
         self._store = _ros1_typestore()
         self._types = self._store.types
         self._writer = Writer(self._tmp)
+        if formats[compression] is not None:
+            self._writer.set_compression(formats[compression])
         self._writer.open()
         self._connections: dict[str, tuple[object, str]] = {}
         self._seq: dict[str, int] = {}

@@ -155,8 +155,10 @@ class RayCaster:
             # inside for t in [t_in, t_out].
             ax0, ax1 = -u0 * idx, (w - u0) * idx
             ay0, ay1 = -v0 * idy, (h - v0) * idy
-            inside_x = (u0 >= 0) & (u0 <= w)
-            inside_y = (v0 >= 0) & (v0 <= h)
+            # Half-open like world_to_cell: an axis-parallel ray lying on the map's
+            # top or right edge is outside every cell.
+            inside_x = (u0 >= 0) & (u0 < w)
+            inside_y = (v0 >= 0) & (v0 < h)
             tx_in = np.where(dx == 0, np.where(inside_x, -np.inf, np.inf), np.minimum(ax0, ax1))
             tx_out = np.where(dx == 0, np.where(inside_x, np.inf, -np.inf), np.maximum(ax0, ax1))
             ty_in = np.where(dy == 0, np.where(inside_y, -np.inf, np.inf), np.minimum(ay0, ay1))
@@ -199,7 +201,11 @@ class RayCaster:
             step_x = tx < ty
             t_exit = np.minimum(tx, ty)
             t_jump = t + s
-            jump = t_jump > t_exit
+            # Never "jump" by 0 (next to an obstacle): the cell recomputed from a
+            # rounded position could be the one just left, and a ray starting on a
+            # cell boundary along a grid line would never advance. Jumps move t by
+            # >= 1 cell and exact steps move the cell index, so every ray ends.
+            jump = (s > 0.0) & (t_jump > t_exit)
             t_new = np.maximum(t_jump, t_exit)
             hit = s < 0.0
             if hit.any():

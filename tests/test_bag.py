@@ -46,8 +46,8 @@ def _expected():
     return {"ranges": ranges, "stamps": stamps, "odom": odom, "truth": truth, "tag": tag}
 
 
-def _write_bag(path, exp):
-    with BagWriter(path) as bag:
+def _write_bag(path, exp, compression=None):
+    with BagWriter(path, compression=compression) as bag:
         bag.write_tf(exp["stamps"][0], [("base_link", "laser", MOUNT)], topic="/tf_static")
         for k, t in enumerate(exp["stamps"]):
             bag.write_tf(
@@ -92,6 +92,22 @@ def written(tmp_path_factory):
 
 
 # -- writing and reading back --------------------------------------------------------------
+@pytest.mark.parametrize("compression", ["lz4", "bz2"])
+def test_compressed_bags_read_back_identical(tmp_path, written, compression):
+    path, exp, views = written
+    small = _write_bag(tmp_path / f"{compression}.bag", exp, compression=compression)
+    assert small.read_bytes()[:12] == b"#ROSBAG V2.0"
+    with BagReader(small) as bag:
+        scans, odom = bag.scans("/base_scan"), bag.odometry("/odom")
+    np.testing.assert_array_equal(scans.ranges, views["scans"].ranges)
+    np.testing.assert_array_equal(odom.poses, views["odom"].poses)
+
+
+def test_unknown_compression_is_refused(tmp_path):
+    with pytest.raises(ValueError, match="compression"):
+        BagWriter(tmp_path / "x.bag", compression="zip")
+
+
 def test_written_bag_is_ros1_v2(written):
     path, _, _ = written
     assert path.read_bytes()[:12] == b"#ROSBAG V2.0"
