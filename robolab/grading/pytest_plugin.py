@@ -5,6 +5,11 @@ and calls exercise functions on it (``lab.p_hit(...)``). By default ``lab`` is
 the reference module ``solutions.<lab>``; with ``pytest --notebook PATH`` it is
 a proxy to the student's notebook running in an isolated worker process.
 
+A hidden test module may set ``GRADING_LIMITS = {"cpu_seconds": 2, ...}`` (the
+fields of :class:`robolab.grading.proxy.Limits`) to tighten or relax the
+worker's per-call limits for its lab: a lab of microsecond functions should not
+let a hanging submission cost a minute per test.
+
 Every hidden test carries the ``grades`` marker naming the exercise function it
 grades and its points (a positive number). A test under ``tests/labs/`` without
 it, or with a malformed one, stops the session at collection.
@@ -81,9 +86,10 @@ def lab(request: pytest.FixtureRequest):
     notebook = request.config.getoption("--notebook")
     if notebook is None:
         return importlib.import_module(f"solutions.{name}")
-    from robolab.grading.proxy import open_submission  # the isolated worker
+    from robolab.grading.proxy import Limits, open_submission  # the isolated worker
 
-    proxy = open_submission(notebook, lab=name)
+    overrides = getattr(request.module, "GRADING_LIMITS", None)
+    proxy = open_submission(notebook, lab=name, limits=Limits(**overrides) if overrides else None)
     request.addfinalizer(proxy.close)
     request.config.stash[_problems_key].extend(_plain(p) for p in getattr(proxy, "problems", []))
     return proxy
