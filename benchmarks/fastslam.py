@@ -1,0 +1,150 @@
+"""Benchmark: FastSLAM 1.0 steps per second, 100 particles x 15 landmarks, on one core.
+
+Replays the first 300 steps of the fiducial robot with 15 fiducials
+(``FiducialRobot(seed=0, n_fiducials=15)``, about 3.6 observations per step)
+through ``solutions.fastslam.fastslam_step`` (vectorized over particles and
+over the observations of a step), starting from a state in which every landmark
+is already mapped, so each observation is a full EKF update.
+
+Baseline, measured in the same run: the same step written the way the seed's
+MATLAB reads, one particle at a time and one observation at a time, each a
+2 x 2 EKF update in numpy (predict, update, weight, normalize, low-variance
+resample), timed on the first 60 steps.
+
+Speeds are best of 3 repetitions, by process CPU time (steadier than wall
+clock on a shared machine) and by wall clock. Target (issue 11): >= 200 steps
+per second on one core.
+
+Run: ``python benchmarks/fastslam.py``
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+from robolab.fiducials import FiducialRobot
+from robolab.geometry import wrap_angle
+from solutions.fastslam import fastslam_step, init_particles
+
+M = 100
+K = 15
+STEPS = 300
+BASELINE_STEPS = 60
+TARGET = 200.0  # steps per second
+
+
+def mapped_state(run, rng):
+    """A state with every landmark mapped near its true position (0.2 m std), particles near x0."""
+    s = init_particles(M, K, run.x0, init="prior")
+    s["means"] = run.fiducials[None] + rng.normal(0.0, 0.2, (M, K, 2))
+    s["covs"][:] = 0.04 * np.eye(2)
+    s["poses"] = run.x0 + rng.normal(0.0, [0.05, 0.05, 0.01], (M, 3))
+    return s
+
+
+def run_vectorized(state, steps, rng):
+    for u, z in steps:
+        state = fastslam_step(state, u, z, RUN.Q, RUN.Qt, rng, dt=RUN.dt)
+    return state
+
+
+def run_python_loop(state, steps, rng):
+    """The baseline: loops over particles and observations, small numpy arrays inside."""
+    poses = [p.copy() for p in state["poses"]]
+    means = [[m.copy() for m in particle] for particle in state["means"]]
+    covs = [[c.copy() for c in particle] for particle in state["covs"]]
+    chol, Qt, dt = np.linalg.cholesky(RUN.Q), RUN.Qt, RUN.dt
+    for (v, om), z in steps:
+        weights = np.ones(M)
+        for k in range(M):
+            x, y, th = poses[k]
+            noise = chol @ rng.standard_normal(3)
+            poses[k] = (
+                np.array(
+                    [x + v * dt * np.cos(th), y + v * dt * np.sin(th), wrap_angle(th + om * dt)]
+                )
+                + noise
+            )
+            for r, b, j in z:
+                j = int(j)
+                mu, P = means[k][j], covs[k][j]
+                d = mu - poses[k][:2]
+                q = d @ d
+                zhat = np.array([np.sqrt(q), wrap_angle(np.arctan2(d[1], d[0]) - poses[k][2])])
+                H = np.array([[d[0] / np.sqrt(q), d[1] / np.sqrt(q)], [-d[1] / q, d[0] / q]])
+                S = H @ P @ H.T + Qt
+                S_inv = np.linalg.inv(S)
+                K_gain = P @ H.T @ S_inv
+                e = np.array([r, b]) - zhat
+                e[1] = wrap_angle(e[1])
+                means[k][j] = mu + K_gain @ e
+                covs[k][j] = (np.eye(2) - K_gain @ H) @ P
+                weights[k] *= np.exp(-0.5 * e @ S_inv @ e) / np.sqrt(np.linalg.det(2 * np.pi * S))
+        if len(z):
+            weights /= weights.sum()
+            pointers = rng.uniform(0, 1 / M) + np.arange(M) / M
+            idx = np.minimum(np.searchsorted(np.cumsum(weights), pointers), M - 1)
+            poses = [poses[i].copy() for i in idx]
+            means = [[m.copy() for m in means[i]] for i in idx]
+            covs = [[c.copy() for c in covs[i]] for i in idx]
+    return poses
+
+
+def best_of(fn, repeats, *args):
+    wall, cpu = [], []
+    for _ in range(repeats):
+        w, c = time.perf_counter(), time.process_time()
+        fn(*args)
+        wall.append(time.perf_counter() - w)
+        cpu.append(time.process_time() - c)
+    return min(wall), min(cpu)
+
+
+RUN = FiducialRobot(seed=0, n_fiducials=K, n_steps=STEPS).to_run()
+
+
+def main():
+    try:
+        os.sched_setaffinity(0, {0})
+        pinned = "pinned to core 0"
+    except (AttributeError, OSError):
+        pinned = "not pinned (sched_setaffinity unavailable)"
+    steps = [(RUN.commands[t], RUN.observations(t)) for t in range(STEPS)]
+    n_obs = sum(len(z) for _, z in steps) / STEPS
+    state = mapped_state(RUN, np.random.default_rng(0))
+    run_vectorized(state, steps[:20], np.random.default_rng(1))  # warm-up
+    vec_wall, vec_cpu = best_of(run_vectorized, 3, state, steps, np.random.default_rng(2))
+    loop_wall, loop_cpu = best_of(
+        run_python_loop, 3, state, steps[:BASELINE_STEPS], np.random.default_rng(3)
+    )
+    vec = STEPS / vec_cpu, STEPS / vec_wall
+    loop = BASELINE_STEPS / loop_cpu, BASELINE_STEPS / loop_wall
+
+    print(
+        f"lab 07 FastSLAM: fastslam_step, M = {M} particles x K = {K} landmarks, "
+        f"{n_obs:.1f} observations per step ({pinned})"
+    )
+    print(
+        f"{'implementation':<44}{'steps/s (CPU)':>15}{'steps/s (wall)':>16}"
+        f"{'ms/step (CPU)':>15}{'speed-up':>10}"
+    )
+    print(
+        f"{'per-particle Python loop (baseline)':<44}{loop[0]:>15.1f}{loop[1]:>16.1f}"
+        f"{1e3 / loop[0]:>15.2f}{1.0:>10.1f}"
+    )
+    print(
+        f"{'vectorized numpy (solutions.fastslam)':<44}{vec[0]:>15.1f}{vec[1]:>16.1f}"
+        f"{1e3 / vec[0]:>15.2f}"
+        f"{vec[0] / loop[0]:>10.1f}"
+    )
+    print(
+        f"target >= {TARGET:.0f} steps per second on one core: "
+        f"{'met' if vec[0] >= TARGET else 'NOT met'}"
+    )
+
+
+if __name__ == "__main__":
+    main()

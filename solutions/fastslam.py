@@ -1,0 +1,609 @@
+r"""Lab 07 reference solution: FastSLAM 1.0 with known correspondences.
+
+Seed 003 (the ME465 extra lab), Probabilistic Robotics Table 13.1. The robot is
+:class:`robolab.fiducials.FiducialRobot`: a unicycle that measures the range,
+bearing and identity of the fiducials it sees.
+
+FastSLAM factors the SLAM posterior (Probabilistic Robotics eq. 13.8):
+
+.. math::
+
+    p(x_{1:t}, m \mid z_{1:t}, u_{1:t}, c_{1:t})
+      = p(x_{1:t} \mid z_{1:t}, u_{1:t}, c_{1:t})
+        \prod_{j=1}^{K} p(m_j \mid x_{1:t}, z_{1:t}, c_{1:t}),
+
+a particle filter over robot paths and, inside every particle, one small
+2 x 2 EKF per landmark (conditioned on that particle's path the landmarks are
+independent).
+
+The filter's state is plain arrays (a dict), never a list of objects:
+
+============  ================  =====================================================
+key           shape             meaning
+============  ================  =====================================================
+``poses``     (M, 3)            pose ``(x, y, theta)`` of each particle
+``means``     (M, K, 2)         landmark means :math:`\mu_{k,j}` (metres)
+``covs``      (M, K, 2, 2)      landmark covariances :math:`\Sigma_{k,j}` (m^2)
+``seen``      (M, K) bool       landmark j has a Gaussian belief in particle k
+``weights``   (M,)              importance weights, summing to one
+============  ================  =====================================================
+
+Two typos of the seed's handout are corrected here (and pointed out in the
+notebook): the innovation is :math:`e = z - \hat z` (the handout's
+:math:`e = \hat z - z` with :math:`\mu + K e` moves the landmark the wrong way),
+and the weight is :math:`|2\pi Q|^{-1/2} \exp(-\tfrac12 e^T Q^{-1} e)` (the
+handout has :math:`|2\pi Q|^{+1/2}` and :math:`e^T Q e`).
+
+Every function works on all particles at once: the only Python loops are over
+time steps and over rounds of repeated landmark ids within one step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from robolab.fiducials import DT, as_robot
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_positive
+
+__all__ = [
+    "init_particles",
+    "predict_poses",
+    "h",
+    "h_jacobian",
+    "update_landmark",
+    "fastslam_step",
+    "fastslam",
+]
+
+#: The seed's prior of an unseen landmark: mu0 = 0, Sigma0 = 10000 I (m^2).
+SIGMA0 = 10000.0
+#: Log of the book's importance factor p0 for a landmark seen for the first time
+#: (Table 13.1, line 10). It is the same in every particle (all particles see the
+#: same landmarks, correspondences are known), so it cancels when normalizing.
+LOG_P0 = 0.0
+#: Smallest squared range used in h's Jacobian, m^2 (a landmark on the robot is undefined).
+MIN_SQ_RANGE = 1e-12
+INIT_MODES = ("prior", "first_observation")
+STATE_KEYS = ("poses", "means", "covs", "seen", "weights")
+
+
+def init_particles(n_particles, n_landmarks, x0, init="prior"):
+    r"""Create the initial FastSLAM particle set (seed 003, "Data Structure Initialization").
+
+    Every particle starts at the known pose :math:`x_0` (SLAM fixes the map's
+    frame by the start pose) with equal weight :math:`1/M`.
+
+    ``init="prior"`` (the seed): every landmark has the vague Gaussian belief
+    :math:`\mu_0 = 0`, :math:`\Sigma_0 = 10^4 I`, so ``seen`` is all True and the
+    first observation is an ordinary EKF update from that prior.
+
+    ``init="first_observation"`` (the book, Table 13.1 lines 7-10): no landmark
+    has a belief yet (``seen`` all False; ``means`` and ``covs`` hold the
+    placeholders 0 and :math:`10^4 I`); the first observation of landmark j
+    initializes it by inverting the measurement model,
+    :math:`\mu = h^{-1}(z, x)`, :math:`\Sigma = H^{-1} Q_t H^{-T}`.
+
+    Parameters
+    ----------
+    n_particles : int
+        Number of particles M >= 1.
+    n_landmarks : int
+        Number of landmarks K >= 1.
+    x0 : array_like, shape (3,)
+        Start pose ``(x, y, theta)``.
+    init : {"prior", "first_observation"}
+        How landmarks start (see above).
+
+    Returns
+    -------
+    dict of numpy arrays
+        ``poses`` (M, 3), ``means`` (M, K, 2), ``covs`` (M, K, 2, 2),
+        ``seen`` (M, K) bool, ``weights`` (M,); every array is its own copy.
+    """
+    m = _count("n_particles", n_particles)
+    k = _count("n_landmarks", n_landmarks)
+    pose = as_array("x0", x0, shape=(3,), finite=True).copy()
+    pose[2] = wrap_angle(pose[2])
+    if init not in INIT_MODES:
+        raise ValueError(f"init must be one of {INIT_MODES}, got {init!r}")
+    return {
+        "poses": np.tile(pose, (m, 1)),
+        "means": np.zeros((m, k, 2)),
+        "covs": np.broadcast_to(SIGMA0 * np.eye(2), (m, k, 2, 2)).copy(),
+        "seen": np.full((m, k), init == "prior"),
+        "weights": np.full(m, 1.0 / m),
+    }
+
+
+def predict_poses(poses, command, Q, rng, dt=DT):
+    r"""Sample every particle's next pose from the lab's motion model (Table 13.1, line 4).
+
+    The fiducial robot's unicycle model with additive Gaussian pose noise
+    (the same model :mod:`robolab.fiducials` simulates):
+
+    .. math::
+
+        \begin{pmatrix} x' \\ y' \\ \theta' \end{pmatrix} =
+        \begin{pmatrix} x + v\,\Delta t \cos\theta \\ y + v\,\Delta t \sin\theta \\
+        \theta + \omega\,\Delta t \end{pmatrix} + w, \qquad w \sim \mathcal N(0, Q),
+
+    independently for each particle, with :math:`\theta'` wrapped to
+    :math:`[-\pi, \pi)`.
+
+    Parameters
+    ----------
+    poses : array_like, shape (M, 3)
+        Particle poses; not modified.
+    command : array_like, shape (2,)
+        ``[v, omega]`` in m/s and rad/s.
+    Q : array_like, shape (3, 3)
+        Symmetric positive semi-definite noise covariance per step (zeros: no noise).
+    rng : numpy.random.Generator
+        Source of the noise.
+    dt : float
+        Time step in seconds.
+
+    Returns
+    -------
+    numpy.ndarray, shape (M, 3)
+        The sampled poses, a new array.
+    """
+    p = _poses(poses)
+    u = as_array("command", command, shape=(2,), finite=True)
+    q = _covariance("Q", Q, 3, definite=False)
+    _check_rng(rng)
+    dt = check_positive("dt", dt)
+    return _sample_motion(p, u, _sqrt_psd(q), rng, dt)
+
+
+def h(landmark, pose):
+    r"""Range-bearing measurement :math:`\hat z = h(\mu_j, x)` (Probabilistic Robotics eq. 6.40).
+
+    .. math::
+
+        \hat r = \sqrt{(\mu_x - x)^2 + (\mu_y - y)^2}, \qquad
+        \hat\phi = \operatorname{wrap}\big(\operatorname{atan2}(\mu_y - y, \mu_x - x) - \theta\big)
+
+    Broadcasts over leading dimensions (for example ``landmark`` (M, 2) and
+    ``pose`` (M, 3) for all particles at once).
+
+    Parameters
+    ----------
+    landmark : array_like, shape (..., 2)
+        Landmark position(s) :math:`\mu_j`, metres.
+    pose : array_like, shape (..., 3)
+        Robot pose(s) ``(x, y, theta)``.
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 2)
+        ``[range, bearing]``; bearing wrapped to ``[-pi, pi)``.
+    """
+    return _range_bearing(_last_dim("landmark", landmark, 2), _last_dim("pose", pose, 3))
+
+
+def h_jacobian(landmark, pose):
+    r"""Jacobian :math:`H = \partial h(\mu_j, x) / \partial \mu_j` with respect to the landmark.
+
+    With :math:`\delta = \mu_j - (x, y)^T` and :math:`q = \delta^T\delta`
+    (Probabilistic Robotics eq. 13.11 restricted to the landmark; the seed's
+    hints give the bearing row):
+
+    .. math::
+
+        H = \begin{pmatrix} \delta_x / \sqrt q & \delta_y / \sqrt q \\
+                            -\delta_y / q & \delta_x / q \end{pmatrix}
+
+    :math:`q` is floored at :data:`MIN_SQ_RANGE` so that a landmark estimate
+    on top of the robot gives a large but finite Jacobian.
+
+    Parameters
+    ----------
+    landmark : array_like, shape (..., 2)
+    pose : array_like, shape (..., 3)
+
+    Returns
+    -------
+    numpy.ndarray, shape (..., 2, 2)
+        Row 0 is the range's gradient, row 1 the bearing's.
+    """
+    return _range_bearing_jacobian(_last_dim("landmark", landmark, 2), _last_dim("pose", pose, 3))
+
+
+def update_landmark(mean, cov, z, pose, Qt):
+    r"""EKF update of one landmark's Gaussian, and the log-likelihood (Table 13.1, lines 12-19).
+
+    .. math::
+
+        \hat z &= h(\mu, x), \quad H = \partial h / \partial \mu, \quad
+        Q = H \Sigma H^T + Q_t, \quad K = \Sigma H^T Q^{-1} \\
+        e &= z - \hat z \quad (\text{bearing wrapped to } [-\pi, \pi)) \\
+        \mu' &= \mu + K e, \qquad \Sigma' = (I - K H)\,\Sigma \\
+        \ln w &= -\tfrac12 \ln|2\pi Q| - \tfrac12 e^T Q^{-1} e
+
+    so :math:`w = |2\pi Q|^{-1/2}\exp(-\frac12 e^T Q^{-1} e)`, the Gaussian
+    density of the innovation. The seed's handout prints
+    :math:`|2\pi Q|^{+1/2}\exp(-\frac12 e^T Q e)` and :math:`e = \hat z - z`:
+    both are typos. Without the wrap, a bearing measured as 3.1 rad and predicted
+    as -3.1 rad (0.08 rad apart) would look 6.2 rad apart.
+
+    The likelihood is returned as its logarithm: for a landmark estimate metres
+    away from the measurement it is :math:`e^{-1000}` or less, which underflows
+    to 0 in every particle; the log stays finite and the filter normalizes
+    with the log-sum-exp trick.
+
+    Broadcasts over leading dimensions, e.g. ``mean`` (M, 2), ``cov``
+    (M, 2, 2), ``pose`` (M, 3) and one ``z`` (2,) for all particles.
+
+    Parameters
+    ----------
+    mean : array_like, shape (..., 2)
+        Landmark mean :math:`\mu`, metres.
+    cov : array_like, shape (..., 2, 2)
+        Landmark covariance :math:`\Sigma` (symmetric positive definite).
+    z : array_like, shape (..., 2)
+        Measurement ``[range, bearing]``.
+    pose : array_like, shape (..., 3)
+        The particle's pose.
+    Qt : array_like, shape (2, 2)
+        Measurement noise covariance.
+
+    Returns
+    -------
+    mean : numpy.ndarray, shape (..., 2)
+    cov : numpy.ndarray, shape (..., 2, 2)
+        Symmetrized.
+    log_likelihood : numpy.ndarray, shape (...)
+        :math:`\ln \mathcal N(z; \hat z, Q)`, finite.
+    """
+    mu = _last_dim("mean", mean, 2)
+    sigma = as_array("cov", cov, finite=True)
+    if sigma.ndim < 2 or sigma.shape[-2:] != (2, 2):
+        raise ValueError(f"cov must have shape (..., 2, 2), got {sigma.shape}")
+    zz = _last_dim("z", z, 2)
+    p = _last_dim("pose", pose, 3)
+    qt = _covariance("Qt", Qt, 2, definite=True)
+    return _ekf_update(mu, sigma, zz, p, qt)
+
+
+def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True):
+    r"""One step of FastSLAM 1.0 with known correspondences (Probabilistic Robotics Table 13.1).
+
+    1. Sample each particle's pose from the motion model (:func:`predict_poses`).
+    2. For every observation ``[r, phi, j]``, in every particle at once: if
+       landmark j has a belief, EKF-update it (:func:`update_landmark`) and
+       multiply the weight by the likelihood; otherwise initialize it from the
+       observation, :math:`\mu = (x + r\cos(\theta+\phi), y + r\sin(\theta+\phi))`,
+       :math:`\Sigma = H^{-1} Q_t H^{-T}`, weight factor :math:`p_0`. Landmarks not
+       observed are left alone. Observations of different landmarks are
+       processed together; a repeated id waits for the next round.
+    3. Normalize the weights in log space:
+       :math:`w_k = \exp(\ell_k - \max\ell) / \sum_i \exp(\ell_i - \max\ell)` with
+       :math:`\ell_k = \ln w_k^{old} + \sum \ln \mathcal N(z; \hat z, Q)`, so the
+       weights stay finite even when every likelihood underflows.
+    4. Resample with the low-variance sampler (Table 4.4), unless ``resample``
+       is False or there was no observation (then the weights did not change).
+       Resampling copies the chosen particles' arrays (fancy indexing): no two
+       particles share landmark memory, and the input ``state`` is not modified.
+
+    Parameters
+    ----------
+    state : dict
+        ``poses``, ``means``, ``covs``, ``seen``, ``weights`` as made by
+        :func:`init_particles`.
+    command : array_like, shape (2,)
+        ``[v, omega]``.
+    observations : array_like, shape (k, 3)
+        Rows ``[range, bearing, id]`` (``k`` may be 0; ``None`` means none).
+    Q : array_like, shape (3, 3)
+        Motion noise covariance.
+    Qt : array_like, shape (2, 2)
+        Measurement noise covariance.
+    rng : numpy.random.Generator
+    dt : float
+        Time step in seconds.
+    resample : bool
+        Resample after weighting (the book always does). With False the new
+        state keeps the normalized importance weights.
+
+    Returns
+    -------
+    dict
+        The new state (new arrays). After resampling the weights are uniform.
+    """
+    s = _check_state(state)
+    n_landmarks = s["means"].shape[1]
+    obs = _observations(observations, n_landmarks)
+    qt = _covariance("Qt", Qt, 2, definite=True)
+    poses = predict_poses(s["poses"], command, Q, rng, dt)  # checks command, Q, rng, dt
+    means, covs, seen = s["means"].copy(), s["covs"].copy(), s["seen"].copy()
+    log_w = np.log(s["weights"], out=np.full_like(s["weights"], -np.inf), where=s["weights"] > 0)
+    ids = obs[:, 2].astype(np.intp)
+    remaining = np.arange(len(obs))
+    while remaining.size:  # rounds of distinct landmark ids (one round unless ids repeat)
+        _, first = np.unique(ids[remaining], return_index=True)
+        batch, remaining = remaining[first], np.delete(remaining, first)
+        j, z = ids[batch], obs[batch, :2]
+        mu, sigma, known = means[:, j], covs[:, j], seen[:, j]  # (M, b, 2), (M, b, 2, 2), (M, b)
+        new_mu, new_sigma, log_like = _ekf_update(mu, sigma, z[None], poses[:, None, :], qt)
+        if not known.all():
+            init_mu, init_sigma = _landmark_from_observation(z[None], poses[:, None, :], qt)
+            new_mu = np.where(known[..., None], new_mu, init_mu)
+            new_sigma = np.where(known[..., None, None], new_sigma, init_sigma)
+            log_like = np.where(known, log_like, LOG_P0)
+        means[:, j], covs[:, j], seen[:, j] = new_mu, new_sigma, True
+        log_w = log_w + log_like.sum(axis=1)
+    weights = _normalize_log_weights(log_w)
+    new = {"poses": poses, "means": means, "covs": covs, "seen": seen, "weights": weights}
+    if resample and len(obs):
+        idx = _low_variance_resample(weights, rng)
+        new = {key: value[idx] for key, value in new.items() if key != "weights"}
+        new["weights"] = np.full(len(idx), 1.0 / len(idx))
+    return new
+
+
+def fastslam(
+    robot_or_run, n_particles, rng, init="first_observation", Q=None, Qt=None, history=False
+):
+    r"""Run FastSLAM 1.0 over a whole run of the fiducial robot (seed 003's main loop).
+
+    ::
+
+        state = init_particles(M, K, x0, init)
+        while robot.run():
+            state = fastslam_step(state, robot.input(), robot.measurement(), Q, Qt, rng)
+
+    Estimates reported (document of choice): the pose estimate at each step is
+    the mean of the particles after the step (after resampling all weights are
+    equal; the heading is the circular mean). The final map is the weighted
+    mixture of the particles' landmark Gaussians, moment-matched:
+    :math:`\bar\mu_j = \sum_k w_k \mu_{k,j}`,
+    :math:`\bar\Sigma_j = \sum_k w_k (\Sigma_{k,j} + (\mu_{k,j}-\bar\mu_j)(\mu_{k,j}-\bar\mu_j)^T)`.
+    Landmarks never observed are reported as NaN.
+
+    Parameters
+    ----------
+    robot_or_run : FiducialRobot, FiducialRun or path
+        A :class:`robolab.fiducials.FiducialRobot` (driven from its current
+        step), or a recorded :class:`robolab.fiducials.FiducialRun` / ``.npz``
+        path (replayed from its start).
+    n_particles : int
+        Number of particles M.
+    rng : numpy.random.Generator
+    init : {"first_observation", "prior"}
+        Landmark initialization (:func:`init_particles`). The default is the
+        book's: the seed's ``"prior"`` linearizes the first update of every
+        landmark at the origin, which can leave it metres off with a small
+        covariance for hundreds of steps (the notebook shows it).
+    Q, Qt : array_like, optional
+        Noise covariances the filter assumes; default the robot's own.
+    history : bool
+        Also return every particle's pose at every step.
+
+    Returns
+    -------
+    dict
+        ``path`` (T+1, 3) estimated poses (row 0 is ``x0``); ``landmarks`` (K, 2);
+        ``landmark_covs`` (K, 2, 2); ``observed`` (K,) bool; ``state`` the final
+        particle set; with ``history=True`` also ``particles`` (T+1, M, 3).
+    """
+    robot = as_robot(robot_or_run)
+    _check_rng(rng)
+    q = robot.Q if Q is None else Q
+    qt = robot.Qt if Qt is None else Qt
+    state = init_particles(n_particles, robot.n_fiducials, robot.x0, init)
+    path = [_mean_pose(state["poses"], state["weights"])]
+    particles = [state["poses"]] if history else None
+    observed = np.zeros(robot.n_fiducials, dtype=bool)
+    while robot.run():
+        z = robot.measurement()
+        observed[z[:, 2].astype(np.intp)] = True
+        state = fastslam_step(state, robot.input(), z, q, qt, rng, dt=robot.dt)
+        path.append(_mean_pose(state["poses"], state["weights"]))
+        if history:
+            particles.append(state["poses"])
+    w = state["weights"]
+    lm = np.einsum("k,kjd->jd", w, state["means"])
+    d = state["means"] - lm
+    lm_cov = np.einsum("k,kjab->jab", w, state["covs"]) + np.einsum("k,kja,kjb->jab", w, d, d)
+    lm[~observed] = np.nan
+    lm_cov[~observed] = np.nan
+    out = {
+        "path": np.array(path),
+        "landmarks": lm,
+        "landmark_covs": lm_cov,
+        "observed": observed,
+        "state": state,
+    }
+    if history:
+        out["particles"] = np.array(particles)
+    return out
+
+
+# -- private helpers -------------------------------------------------------------
+
+
+def _count(name, value) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
+    if value < 1:
+        raise ValueError(f"{name} must be >= 1, got {value}")
+    return int(value)
+
+
+def _poses(poses) -> np.ndarray:
+    p = as_array("poses", poses, ndim=2, finite=True)
+    if p.shape[1] != 3:
+        raise ValueError(f"poses must have shape (M, 3), got {p.shape}")
+    return p
+
+
+def _last_dim(name, value, n) -> np.ndarray:
+    arr = as_array(name, value, finite=True)
+    if arr.ndim == 0 or arr.shape[-1] != n:
+        raise ValueError(f"{name} must have shape (..., {n}), got {arr.shape}")
+    return arr
+
+
+def _check_rng(rng) -> None:
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(
+            "rng must be a numpy.random.Generator (np.random.default_rng(seed)), "
+            f"got {type(rng).__name__}"
+        )
+
+
+def _covariance(name, value, n, *, definite) -> np.ndarray:
+    c = as_array(name, value, shape=(n, n), finite=True)
+    if np.abs(c - c.T).max() > 1e-9 * max(1.0, np.abs(c).max()):
+        raise ValueError(f"{name} must be symmetric, got {c.tolist()}")
+    eig = np.linalg.eigvalsh(c)
+    if eig[0] < -1e-12 * max(1.0, eig[-1]) or (definite and eig[0] <= 0):
+        kind = "positive definite" if definite else "positive semi-definite"
+        raise ValueError(f"{name} must be {kind}, got eigenvalues {eig.tolist()}")
+    return c
+
+
+def _sqrt_psd(c: np.ndarray) -> np.ndarray:
+    """``L`` with ``L L^T = c`` for symmetric PSD ``c`` (by eigh: zero variances allowed)."""
+    eig, vec = np.linalg.eigh(c)
+    return vec * np.sqrt(np.clip(eig, 0.0, None))
+
+
+def _inv2(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse and determinant of a stack of 2 x 2 matrices, in closed form."""
+    det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
+    inv = np.empty_like(a)
+    inv[..., 0, 0] = a[..., 1, 1]
+    inv[..., 1, 1] = a[..., 0, 0]
+    inv[..., 0, 1] = -a[..., 0, 1]
+    inv[..., 1, 0] = -a[..., 1, 0]
+    return inv / det[..., None, None], det
+
+
+def _ekf_update(mu, sigma, zz, p, qt):
+    """The body of :func:`update_landmark` on checked arrays (called once per round by the step)."""
+    zhat = _range_bearing(mu, p)
+    H = _range_bearing_jacobian(mu, p)
+    Ht = np.swapaxes(H, -1, -2)
+    PHt = sigma @ Ht
+    S = H @ PHt + qt
+    S_inv, det_S = _inv2(S)
+    K = PHt @ S_inv
+    e = zz - zhat
+    e = np.concatenate([e[..., :1], wrap_angle(e[..., 1:2])], -1)
+    new_mean = mu + (K @ e[..., None])[..., 0]
+    new_cov = sigma - K @ H @ sigma
+    new_cov = 0.5 * (new_cov + np.swapaxes(new_cov, -1, -2))
+    maha = np.einsum("...i,...ij,...j->...", e, S_inv, e)
+    log_like = -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * np.log(det_S)
+    return new_mean, new_cov, log_like
+
+
+def _sample_motion(p, u, q_sqrt, rng, dt):
+    """The body of :func:`predict_poses` on checked arrays; ``q_sqrt @ q_sqrt.T = Q``."""
+    noise = rng.standard_normal(p.shape) @ q_sqrt.T
+    out = np.empty_like(p)
+    out[:, 0] = p[:, 0] + u[0] * dt * np.cos(p[:, 2]) + noise[:, 0]
+    out[:, 1] = p[:, 1] + u[0] * dt * np.sin(p[:, 2]) + noise[:, 1]
+    out[:, 2] = wrap_angle(p[:, 2] + u[1] * dt + noise[:, 2])
+    return out
+
+
+def _range_bearing(lm, p):
+    """The body of :func:`h` on checked arrays."""
+    dx = lm[..., 0] - p[..., 0]
+    dy = lm[..., 1] - p[..., 1]
+    return np.stack([np.hypot(dx, dy), wrap_angle(np.arctan2(dy, dx) - p[..., 2])], -1)
+
+
+def _range_bearing_jacobian(lm, p):
+    """The body of :func:`h_jacobian` on checked arrays."""
+    dx = lm[..., 0] - p[..., 0]
+    dy = lm[..., 1] - p[..., 1]
+    q = np.maximum(dx * dx + dy * dy, MIN_SQ_RANGE)
+    r = np.sqrt(q)
+    return np.stack([np.stack([dx / r, dy / r], -1), np.stack([-dy / q, dx / q], -1)], -2)
+
+
+def _landmark_from_observation(z, pose, Qt):
+    r"""Table 13.1 lines 7-9: :math:`\mu = h^{-1}(z, x)`, :math:`\Sigma = H^{-1} Q_t H^{-T}`."""
+    r, phi = z[..., 0], z[..., 1]
+    angle = pose[..., 2] + phi
+    mu = np.stack([pose[..., 0] + r * np.cos(angle), pose[..., 1] + r * np.sin(angle)], -1)
+    mu = np.broadcast_to(mu, np.broadcast_shapes(mu.shape, pose.shape[:-1] + (2,)))
+    H_inv, _ = _inv2(_range_bearing_jacobian(mu, pose))
+    return mu.copy(), H_inv @ Qt @ np.swapaxes(H_inv, -1, -2)
+
+
+def _normalize_log_weights(log_w: np.ndarray) -> np.ndarray:
+    """``exp(log_w - max) / sum``: finite and summing to one unless every entry is -inf."""
+    top = np.max(log_w)
+    if not np.isfinite(top):
+        raise ValueError("every particle has zero weight (log-weights all -inf or NaN)")
+    w = np.exp(log_w - top)
+    return w / w.sum()
+
+
+def _low_variance_resample(weights: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Indices drawn by the low-variance sampler (Probabilistic Robotics Table 4.4)."""
+    m = len(weights)
+    pointers = rng.uniform(0.0, 1.0 / m) + np.arange(m) / m
+    idx = np.searchsorted(np.cumsum(weights), pointers, side="left")
+    return np.minimum(idx, m - 1)
+
+
+def _check_state(state) -> dict:
+    if not isinstance(state, dict):
+        raise TypeError(f"state must be a dict with keys {STATE_KEYS}, got {type(state).__name__}")
+    missing = [k for k in STATE_KEYS if k not in state]
+    if missing:
+        raise ValueError(f"state is missing {', '.join(missing)} (make it with init_particles)")
+    poses = _poses(state["poses"])
+    m = poses.shape[0]
+    means = as_array("state['means']", state["means"], ndim=3, finite=True)
+    k = means.shape[1]
+    if means.shape != (m, k, 2):
+        raise ValueError(
+            f"state['means'] must have shape (M, K, 2) = ({m}, K, 2), got {means.shape}"
+        )
+    covs = as_array("state['covs']", state["covs"], shape=(m, k, 2, 2), finite=True)
+    seen = np.asarray(state["seen"])
+    if seen.shape != (m, k) or seen.dtype != bool:
+        raise ValueError(
+            f"state['seen'] must be a bool array of shape ({m}, {k}), got {seen.dtype} {seen.shape}"
+        )
+    weights = as_array(
+        "state['weights']", state["weights"], shape=(m,), finite=True, nonnegative=True
+    )
+    if abs(weights.sum() - 1.0) > 1e-6:
+        raise ValueError(f"state['weights'] must sum to 1, got {weights.sum()}")
+    return {"poses": poses, "means": means, "covs": covs, "seen": seen, "weights": weights}
+
+
+def _observations(observations, n_landmarks) -> np.ndarray:
+    if observations is None:
+        return np.empty((0, 3))
+    obs = as_array("observations", observations, finite=True)
+    if obs.size == 0:
+        return np.empty((0, 3))
+    if obs.ndim != 2 or obs.shape[1] != 3:
+        raise ValueError(
+            f"observations must have shape (k, 3) rows [range, bearing, id], got {obs.shape}"
+        )
+    ids = obs[:, 2]
+    if np.any(ids != np.round(ids)) or np.any(ids < 0) or np.any(ids >= n_landmarks):
+        raise ValueError(
+            f"observations' ids must be integers in [0, {n_landmarks}), got {ids.tolist()}"
+        )
+    if np.any(obs[:, 0] < 0):
+        raise ValueError(f"observations' ranges must be >= 0, got {obs[:, 0].tolist()}")
+    return obs
+
+
+def _mean_pose(poses: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Weighted mean pose; the heading is the circular mean, wrapped."""
+    xy = weights @ poses[:, :2]
+    theta = np.arctan2(weights @ np.sin(poses[:, 2]), weights @ np.cos(poses[:, 2]))
+    return np.array([xy[0], xy[1], wrap_angle(theta)])
