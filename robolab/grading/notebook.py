@@ -280,7 +280,8 @@ def _is_target(node: ast.expr) -> bool:
 
 
 def _is_constant(node: ast.expr) -> bool:
-    """Literals, containers of them, arithmetic on them and dotted names like ``np.pi``."""
+    """Literals, containers of and arithmetic on them, dotted names like ``np.pi``, and
+    numpy/math functions of constants like ``np.sqrt(2 * np.pi)``."""
     if isinstance(node, ast.Constant):
         return True
     if isinstance(node, (ast.Tuple, ast.List, ast.Set)):
@@ -297,7 +298,28 @@ def _is_constant(node: ast.expr) -> bool:
         return True
     if isinstance(node, ast.Attribute):
         return _is_constant(node.value) and not isinstance(node.value, ast.Constant)
+    if isinstance(node, ast.Call):
+        # np.sqrt(2 * np.pi), np.deg2rad(10), np.array([...]), math.log(2): pure
+        # functions of constants are constants too (students define them at top level).
+        return (
+            _root_name(node.func) in _PURE_MODULES
+            and all(_is_constant(a) for a in node.args)
+            and all(k.arg is not None and _is_constant(k.value) for k in node.keywords)
+        )
     return False
+
+
+#: Modules whose functions, called on constants, make constants (by their usual import names).
+_PURE_MODULES = frozenset({"np", "numpy", "math"})
+
+
+def _root_name(node: ast.expr) -> str | None:
+    """``np`` for ``np.linalg.norm``; None unless an attribute chain on a name."""
+    if not isinstance(node, ast.Attribute):
+        return None
+    while isinstance(node, ast.Attribute):
+        node = node.value
+    return node.id if isinstance(node, ast.Name) else None
 
 
 def _function_names(sources) -> list[str]:

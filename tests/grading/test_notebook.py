@@ -69,7 +69,9 @@ def test_constant_assignments_are_kept(statement):
     "statement",
     [
         "x = f()",
-        "x = np.zeros(3)",
+        "x = plt.plot(3)",
+        "x = np.zeros(f())",
+        "x = np.random.default_rng(0).random()",
         "x = [i for i in range(3)]",
         "obj.attr = 3",
         "d['k'] = 1",
@@ -85,7 +87,17 @@ def test_constant_assignments_are_kept(statement):
     ],
 )
 def test_non_constant_statements_are_dropped(statement):
+    # Calls are dropped unless they are numpy/math functions of constants (see below).
     assert kept_lines(statement) == []
+
+
+@pytest.mark.parametrize(
+    "statement",
+    ["SQRT_2PI = np.sqrt(2 * np.pi)", "ANGLES = np.deg2rad(np.arange(0, 360, 10))",
+     "A = np.array([[1.0, 0.0], [0.0, 1.0]], dtype=float)", "L = math.log(2)"],
+)
+def test_numpy_and_math_functions_of_constants_are_kept(statement):
+    assert kept_lines(statement) == [statement]
 
 
 def test_decorators_are_kept_with_their_function():
@@ -143,11 +155,11 @@ def test_load_notebook(tmp_path):
 
 
 def test_assignments_reading_dropped_names_are_dropped_across_cells(tmp_path):
-    # `belief = np.array(...)` is a call, so it is dropped; keeping `history = [belief]`
+    # `belief = run(...)` is a call, so it is dropped; keeping `history = [belief]`
     # would only raise NameError while defining the notebook.
     path = write_notebook(
         tmp_path / "sub.ipynb",
-        "import numpy as np\nbelief = np.array([0.5, 0.5])",
+        "import numpy as np\ndef run(b):\n    return b\nbelief = run(np.array([0.5, 0.5]))",
         "history = [belief]\nTAU = 2 * np.pi\nHALF = TAU / 2\nN = len",
         "def f():\n    return HALF",
     )

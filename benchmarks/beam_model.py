@@ -1,0 +1,204 @@
+"""Benchmark for lab 02: beam-model log-likelihood of 2500 poses x 61 beams, ray casting included.
+
+Run pinned to one core::
+
+    .venv/bin/python benchmarks/beam_model.py
+
+Workload (fixed seeds): the bundled maze (203 x 203 cells of 0.05 m), a
+front-facing lidar of 61 beams over 180 degrees (3 degrees apart), range 3 m,
+one scan simulated at a free pose, and 2500 candidate poses uniform over the
+free space. One *evaluation* is the log-likelihood of the scan at all 2500
+poses: ray casting (2500 x 61 = 152,500 rays) plus Table 6.1's mixture and the
+sum of logs. The issue's target is >= 10 evaluations per second.
+
+Rows, all measured in this run:
+
+* baseline: the seed's way, a Python loop over poses and beams with
+  ``castraysingle`` (pixel units) per beam and the mixture per beam in scalar
+  ``math``; timed on 20 poses and scaled to 2500;
+* per-pose loop: ``cast_rays`` and ``beam_range_finder_model`` vectorized over
+  the beams, looping over poses; timed on 200 poses and scaled;
+* vectorized: one ``cast_rays`` for all poses + one ``beam_range_finder_model``
+  (the solution), with its two parts timed separately;
+* ``pose_likelihood_map`` on 625 positions x 4 headings (2500 poses, headings
+  90 degrees apart): directions shared between headings are cast once.
+
+Times are the best of 5 runs, by wall clock and by process CPU time (the CPU
+figure is the steadier one on a shared machine).
+"""
+
+from __future__ import annotations
+
+import os
+
+# One core, one thread: set before numpy is imported.
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+if hasattr(os, "sched_setaffinity"):
+    os.sched_setaffinity(0, {0})
+
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from robolab.maps import load_maze  # noqa: E402
+from robolab.raycast import cast_rays, castraysingle  # noqa: E402
+from solutions import beam_model as lab  # noqa: E402
+
+N_POSES, REPEATS, TARGET = 2500, 5, 10.0
+BEAMS = np.deg2rad(np.linspace(-90.0, 90.0, 61))
+PARAMS = {
+    "z_hit": 0.9,
+    "z_short": 0.03,
+    "z_max": 0.03,
+    "z_rand": 0.04,
+    "sigma_hit": 0.1,
+    "lambda_short": 1.0,
+    "max_range": 3.0,
+}
+
+
+def seed_loop(scan, grid, poses, params):
+    """Table 6.1 as the seed writes it: per pose, per beam, castraysingle and scalar math."""
+    res = grid.resolution
+    zmax, sigma, lam = params["max_range"], params["sigma_hit"], params["lambda_short"]
+    out = np.empty(len(poses))
+    for i, (x, y, theta) in enumerate(poses):
+        log_q = 0.0
+        for z, a in zip(scan, BEAMS, strict=True):
+            z_star = castraysingle(x / res, y / res, theta + a, grid, zmax / res) * res
+            cdf = lambda v: 0.5 * (1.0 + math.erf(v / math.sqrt(2.0)))  # noqa: E731
+            eta = 1.0 / (cdf((zmax - z_star) / sigma) - cdf(-z_star / sigma))
+            p_hit = (
+                eta
+                * math.exp(-0.5 * ((z - z_star) / sigma) ** 2)
+                / (sigma * math.sqrt(2 * math.pi))
+            )
+            p_short = (
+                lam * math.exp(-lam * z) / -math.expm1(-lam * z_star)
+                if 0 <= z <= z_star and z_star > 0
+                else 0.0
+            )
+            p = (
+                params["z_hit"] * p_hit
+                + params["z_short"] * p_short
+                + params["z_max"] * (z == zmax)
+                + params["z_rand"] * (1.0 / zmax if z < zmax else 0.0)
+            )
+            log_q += math.log(p)
+        out[i] = log_q
+    return out
+
+
+def per_pose_loop(scan, grid, poses, params):
+    """Vectorized over beams, one cast_rays call per pose."""
+    return np.array(
+        [
+            lab.beam_range_finder_model(
+                scan, cast_rays(grid, p, BEAMS, params["max_range"])[0], params, log=True
+            )
+            for p in poses
+        ]
+    )
+
+
+def vectorized(scan, grid, poses, params):
+    z_star = cast_rays(grid, poses, BEAMS, params["max_range"])
+    return lab.beam_range_finder_model(scan, z_star, params, log=True)
+
+
+def best_of(fn, repeats=REPEATS):
+    """(best wall seconds, best CPU seconds, last result)."""
+    wall, cpu, out = [], [], None
+    for _ in range(repeats):
+        t0, c0 = time.perf_counter(), time.process_time()
+        out = fn()
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return min(wall), min(cpu), out
+
+
+def main():
+    grid = load_maze()
+    rng = np.random.default_rng(0)
+    free = np.argwhere(grid.free)
+    xy = grid.cell_to_world(free[rng.choice(len(free), N_POSES)]) + rng.uniform(
+        -0.02, 0.02, (N_POSES, 2)
+    )
+    poses = np.column_stack([xy, rng.uniform(-np.pi, np.pi, N_POSES)])
+    true_pose = np.array([5.52, 8.47, np.pi / 3])
+    z_true = cast_rays(grid, true_pose, BEAMS, PARAMS["max_range"])[0]
+    scan = np.where(
+        z_true >= PARAMS["max_range"],
+        PARAMS["max_range"],
+        np.clip(
+            z_true + rng.normal(0.0, 0.05, z_true.size), 0.0, np.nextafter(PARAMS["max_range"], 0)
+        ),
+    )
+    cast_rays(grid, poses[:10], BEAMS, PARAMS["max_range"])  # build and cache the distance field
+
+    rows = []
+    n_seed, n_pose = 20, 200
+    w, c, ref = best_of(lambda: seed_loop(scan, grid, poses[:n_seed], PARAMS), repeats=2)
+    rows.append(
+        (
+            "baseline: seed loop, castraysingle per beam",
+            w * N_POSES / n_seed,
+            c * N_POSES / n_seed,
+            f"{n_seed} poses, scaled",
+        )
+    )
+    w, c, got = best_of(lambda: per_pose_loop(scan, grid, poses[:n_pose], PARAMS), repeats=2)
+    assert np.allclose(got[:n_seed], ref, rtol=1e-9), "per-pose loop disagrees with the seed loop"
+    rows.append(
+        (
+            "per-pose loop, beams vectorized",
+            w * N_POSES / n_pose,
+            c * N_POSES / n_pose,
+            f"{n_pose} poses, scaled",
+        )
+    )
+    w, c, got = best_of(lambda: vectorized(scan, grid, poses, PARAMS))
+    assert np.allclose(got[:n_seed], ref, rtol=1e-9), "vectorized disagrees with the seed loop"
+    rows.append(("vectorized: cast_rays + beam_range_finder_model", w, c, "all 2500 poses"))
+    z_star = cast_rays(grid, poses, BEAMS, PARAMS["max_range"])
+    w_cast, c_cast, _ = best_of(lambda: cast_rays(grid, poses, BEAMS, PARAMS["max_range"]))
+    w_model, c_model, _ = best_of(
+        lambda: lab.beam_range_finder_model(scan, z_star, PARAMS, log=True)
+    )
+    rows.append(("  of which ray casting (152,500 rays)", w_cast, c_cast, ""))
+    rows.append(("  of which the model, log form", w_model, c_model, ""))
+    g = np.arange(25) * 0.4 + 0.225  # 25 x 25 positions (cell centres), 4 headings
+    positions = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
+    headings = np.deg2rad([0.0, 90.0, 180.0, -90.0])
+    w, c, _ = best_of(
+        lambda: lab.pose_likelihood_map(scan, grid, BEAMS, PARAMS, positions, headings)
+    )
+    rows.append(("pose_likelihood_map, 625 positions x 4 headings", w, c, "shared directions"))
+
+    base = rows[0][2]
+    print(
+        f"beam model log-likelihood, {N_POSES} poses x {BEAMS.size} beams on the maze, "
+        f"one core, best of {REPEATS}"
+    )
+    print(
+        f"{'method':50s} {'wall [ms]':>10s} {'cpu [ms]':>10s} {'eval/s (cpu)':>13s} "
+        f"{'speed-up':>9s}  note"
+    )
+    for name, w, c, note in rows:
+        print(f"{name:50s} {w * 1e3:10.1f} {c * 1e3:10.1f} {1 / c:13.2f} {base / c:8.0f}x  {note}")
+    best = 1.0 / rows[2][2]
+    print(
+        f"target: >= {TARGET:g} evaluations/s (arbitrary poses); measured {best:.1f}/s by CPU time "
+        f"({'met' if best >= TARGET else 'NOT met'}); "
+        f"ray casting is {c_cast / rows[2][2]:.0%} of it"
+    )
+
+
+if __name__ == "__main__":
+    main()

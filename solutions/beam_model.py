@@ -1,0 +1,579 @@
+r"""Lab 02, beam model: the measurement model of a range finder, and the maze challenge.
+
+Reference solutions for ``notebooks/02_beam_model.ipynb`` (seed 001, the
+measurement-model lab; seed 000, section 2.2, AMCL's ``BeamModel``;
+Probabilistic Robotics, section 6.3, Table 6.1).
+
+One beam ``k`` of a scan reports a range :math:`z^k \in [0, z_{max}]`. Given the
+pose :math:`x_t` and the map :math:`m`, ray casting predicts the true range
+:math:`z^{k*}` (:func:`robolab.raycast.cast_rays`), and the beam model explains
+the reading as a mixture of four sources of error (eq. 6.12):
+
+.. math::
+
+    p(z^k \mid x_t, m) = w_{hit}\, p_{hit} + w_{short}\, p_{short}
+                        + w_{max}\, p_{max} + w_{rand}\, p_{rand},
+    \qquad w_{hit} + w_{short} + w_{max} + w_{rand} = 1,
+
+where the book writes the weights :math:`z_{hit}, z_{short}, z_{max}, z_{rand}`.
+Beams are assumed independent given the pose, so a scan's likelihood is the
+product over beams (Table 6.1, line 7), best computed as a sum of logs.
+
+The parameter dictionary
+------------------------
+The book uses :math:`z_{max}` both for the sensor's range and for the weight of
+the max-range component. Here the ``params`` dict keeps the book's names for
+the four **weights** and names the range ``"max_range"``:
+
+==================  =========================================================
+key                 meaning
+==================  =========================================================
+``"z_hit"``         weight of :func:`p_hit` (>= 0)
+``"z_short"``       weight of :func:`p_short` (>= 0)
+``"z_max"``         weight of :func:`p_max` (>= 0) -- a weight, not a range
+``"z_rand"``        weight of :func:`p_rand` (>= 0)
+``"sigma_hit"``     standard deviation of the measurement noise, metres (> 0)
+``"lambda_short"``  rate of the exponential of unexpected objects, 1/metres (> 0)
+``"max_range"``     the sensor's maximum range :math:`z_{max}`, metres (> 0)
+==================  =========================================================
+
+The four weights must sum to 1 (within 1e-9). The density functions
+:func:`p_hit`, :func:`p_max` and :func:`p_rand` take the *range* as their
+``z_max`` argument, as in the seed.
+
+Max-range readings
+------------------
+:func:`p_max` is a point mass at exactly :math:`z_{max}`. A real sensor reports
+"no return" as ``inf``, ``NaN``, 0 or a value ``>= range_max``
+(sensor_msgs/LaserScan); such readings must be mapped to exactly ``max_range``
+before they reach the model. Non-finite readings raise ValueError here: they
+are never silently turned into hits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from scipy.special import ndtr
+
+from robolab.geometry import wrap_angle
+from robolab.maps import OccupancyGrid
+from robolab.raycast import cast_rays
+from robolab.validation import as_array, check_positive
+
+__all__ = [
+    "p_hit",
+    "p_short",
+    "p_max",
+    "p_rand",
+    "beam_range_finder_model",
+    "pose_likelihood_map",
+]
+
+#: The keys of a beam model ``params`` dict: the four mixture weights ...
+WEIGHT_KEYS = ("z_hit", "z_short", "z_max", "z_rand")
+#: ... and the three other parameters.
+SHAPE_KEYS = ("sigma_hit", "lambda_short", "max_range")
+#: The mixture weights must sum to 1 within this tolerance.
+WEIGHT_SUM_ATOL = 1e-9
+#: Beam directions closer than this (radians) are cast once in pose_likelihood_map.
+ANGLE_QUANTUM = 1e-9
+#: beam_range_finder_model(log=True) recomputes a beam in log space when its mixture is below this.
+LOG_SPACE_BELOW = 1e-280
+#: pose_likelihood_map evaluates about this many beams at a time (bounds memory).
+CHUNK_BEAMS = 1 << 20
+
+
+def _ranges(name: str, value) -> np.ndarray:
+    """``value`` as a finite float array (any shape); non-finite readings are refused."""
+    arr = as_array(name, value)
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(
+            f"{name} must be finite: map 'no return' readings (inf, NaN) to exactly the "
+            "maximum range before evaluating the model"
+        )
+    return arr
+
+
+def _broadcast(z: np.ndarray, z_star: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Broadcast readings and expected ranges against each other, or say why not."""
+    try:
+        return np.broadcast_arrays(z, z_star)
+    except ValueError:
+        raise ValueError(
+            f"z and z_star must have broadcastable shapes, got {z.shape} and {z_star.shape}"
+        ) from None
+
+
+def _check_expected(z_star: np.ndarray, z_max: float, name: str = "z_star") -> None:
+    """Expected ranges come from ray casting: they lie in [0, z_max]."""
+    if np.any((z_star < 0) | (z_star > z_max)):
+        raise ValueError(
+            f"{name} must lie in [0, z_max] = [0, {z_max:g}] (a ray-cast range), "
+            f"got values in [{z_star.min():g}, {z_star.max():g}]"
+        )
+
+
+def _out(arr: np.ndarray):
+    """A 0-d result as a Python float, anything else unchanged."""
+    return float(arr) if arr.ndim == 0 else arr
+
+
+def p_hit(z, z_star, z_max, sigma_hit):
+    r"""Correct range with local measurement noise: a Gaussian truncated to :math:`[0, z_{max}]`.
+
+    Probabilistic Robotics, eq. 6.4-6.6:
+
+    .. math::
+
+        p_{hit}(z \mid x_t, m) =
+        \begin{cases}
+            \eta\, \mathcal{N}(z;\, z^*,\, \sigma_{hit}^2) & 0 \le z \le z_{max}\\
+            0 & \text{otherwise}
+        \end{cases}
+        \qquad
+        \mathcal{N}(z; z^*, \sigma^2) = \frac{1}{\sqrt{2\pi\sigma^2}}
+            e^{-\frac{(z - z^*)^2}{2\sigma^2}},
+
+    with the normalizer computed exactly through the standard normal CDF
+    :math:`\Phi`:
+
+    .. math::
+
+        \eta^{-1} = \int_0^{z_{max}} \mathcal{N}(z; z^*, \sigma_{hit}^2)\, dz
+                  = \Phi\!\left(\frac{z_{max} - z^*}{\sigma_{hit}}\right)
+                    - \Phi\!\left(\frac{-z^*}{\sigma_{hit}}\right).
+
+    Since :math:`z^* \in [0, z_{max}]`, :math:`\eta^{-1} > 0`, so the result is
+    finite; it integrates to 1 over :math:`[0, z_{max}]`.
+
+    Parameters
+    ----------
+    z : float or array_like
+        Measured range(s), metres; finite. Readings outside :math:`[0, z_{max}]`
+        get density 0.
+    z_star : float or array_like
+        Expected range(s) from ray casting, metres, in :math:`[0, z_{max}]`;
+        broadcasts against ``z``.
+    z_max : float
+        The sensor's maximum range, metres (> 0).
+    sigma_hit : float
+        Standard deviation of the measurement noise, metres (> 0).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The density (1/metres), with the broadcast shape of ``z`` and ``z_star``
+        (a float for scalar input).
+
+    Raises
+    ------
+    ValueError
+        ``z_max`` or ``sigma_hit`` not finite and > 0, ``z``/``z_star`` not
+        finite, ``z_star`` outside :math:`[0, z_{max}]`, shapes that do not broadcast.
+    TypeError
+        A non-numeric argument.
+    """
+    z_max = check_positive("z_max", z_max)
+    sigma_hit = check_positive("sigma_hit", sigma_hit)
+    z, z_star = _broadcast(_ranges("z", z), _ranges("z_star", z_star))
+    _check_expected(z_star, z_max)
+    eta = 1.0 / (ndtr((z_max - z_star) / sigma_hit) - ndtr(-z_star / sigma_hit))
+    u = (z - z_star) / sigma_hit
+    gauss = np.exp(-0.5 * u * u) / (sigma_hit * np.sqrt(2.0 * np.pi))
+    inside = (z >= 0.0) & (z <= z_max)
+    return _out(np.where(inside, eta * gauss, 0.0))
+
+
+def _short_mass(z_star: np.ndarray, lambda_short: float) -> tuple[np.ndarray, np.ndarray]:
+    """``1 - exp(-lambda z*)`` and where it is usable: ``eta * lambda`` stays finite."""
+    mass = -np.expm1(-lambda_short * z_star)  # accurate for small lambda z*
+    return mass, mass > lambda_short / np.finfo(float).max
+
+
+def p_short(z, z_star, lambda_short):
+    r"""Unexpected objects in front of the expected one: an exponential on :math:`[0, z^*]`.
+
+    Probabilistic Robotics, eq. 6.7-6.9:
+
+    .. math::
+
+        p_{short}(z \mid x_t, m) =
+        \begin{cases}
+            \eta\, \lambda_{short}\, e^{-\lambda_{short} z} & 0 \le z \le z^*\\
+            0 & \text{otherwise}
+        \end{cases}
+        \qquad
+        \eta = \frac{1}{1 - e^{-\lambda_{short} z^*}},
+
+    since :math:`\int_0^{z^*} \lambda e^{-\lambda z} dz = 1 - e^{-\lambda z^*}`.
+    The normalizer is evaluated as ``-1 / expm1(-lambda_short * z_star)``, which
+    is accurate for small :math:`\lambda_{short} z^*`.
+
+    **The limit** :math:`z^* = 0`: the sensor touches the obstacle (ray casting
+    returns 0 for a pose inside an obstacle) and there is no room for an
+    unexpected object in front of it. The interval :math:`[0, z^*]` is a single
+    point, and ``p_short`` is defined to be 0 for every ``z`` (the pointwise
+    limit of the density for every :math:`z > 0`), never NaN. The same holds
+    whenever :math:`z^*` is so small (about 1e-308 m) that the density
+    :math:`\eta \lambda_{short}` would overflow to infinity.
+
+    Parameters
+    ----------
+    z : float or array_like
+        Measured range(s), metres; finite.
+    z_star : float or array_like
+        Expected range(s), metres (>= 0); broadcasts against ``z``.
+    lambda_short : float
+        Rate of the exponential, 1/metres (> 0).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The density (1/metres), with the broadcast shape of ``z`` and ``z_star``.
+
+    Raises
+    ------
+    ValueError
+        ``lambda_short`` not finite and > 0, ``z``/``z_star`` not finite,
+        ``z_star`` negative, shapes that do not broadcast.
+    TypeError
+        A non-numeric argument.
+    """
+    lambda_short = check_positive("lambda_short", lambda_short)
+    z, z_star = _broadcast(_ranges("z", z), _ranges("z_star", z_star))
+    if np.any(z_star < 0):
+        raise ValueError(f"z_star must be >= 0 (a ray-cast range), got minimum {z_star.min():g}")
+    mass, ok = _short_mass(z_star, lambda_short)
+    eta = np.divide(1.0, mass, out=np.zeros_like(mass), where=ok)
+    inside = ok & (z >= 0.0) & (z <= z_star)
+    return _out(np.where(inside, eta * lambda_short * np.exp(-lambda_short * z), 0.0))
+
+
+def p_max(z, z_max):
+    r"""Failures reported as a max-range reading: the point mass at :math:`z_{max}`.
+
+    Probabilistic Robotics, eq. 6.10:
+
+    .. math::
+
+        p_{max}(z \mid x_t, m) = I(z = z_{max}) =
+        \begin{cases} 1 & z = z_{max}\\ 0 & \text{otherwise.} \end{cases}
+
+    This is a probability (of the discrete event "the reading is exactly
+    :math:`z_{max}`"), not a density. The comparison is **exact**: a real
+    sensor's "no return" readings (``inf``, ``NaN``, values ``>= range_max``)
+    must be mapped to exactly ``z_max`` beforehand; a reading of
+    ``z_max - 1e-12`` is not a max-range reading.
+
+    Parameters
+    ----------
+    z : float or array_like
+        Measured range(s), metres; finite.
+    z_max : float
+        The sensor's maximum range, metres (> 0).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        1.0 where ``z == z_max``, else 0.0; the shape of ``z``.
+
+    Raises
+    ------
+    ValueError
+        ``z`` not finite, ``z_max`` not finite and > 0.
+    TypeError
+        A non-numeric argument.
+    """
+    z_max = check_positive("z_max", z_max)
+    z = _ranges("z", z)
+    return _out((z == z_max).astype(float))
+
+
+def p_rand(z, z_max):
+    r"""Random, unexplained measurements: uniform on :math:`[0, z_{max})`.
+
+    Probabilistic Robotics, eq. 6.11:
+
+    .. math::
+
+        p_{rand}(z \mid x_t, m) =
+        \begin{cases} \dfrac{1}{z_{max}} & 0 \le z < z_{max}\\ 0 & \text{otherwise.} \end{cases}
+
+    The interval is half-open: the reading :math:`z_{max}` itself belongs to
+    :func:`p_max`.
+
+    Parameters
+    ----------
+    z : float or array_like
+        Measured range(s), metres; finite.
+    z_max : float
+        The sensor's maximum range, metres (> 0).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The density (1/metres), the shape of ``z``.
+
+    Raises
+    ------
+    ValueError
+        ``z`` not finite, ``z_max`` not finite and > 0.
+    TypeError
+        A non-numeric argument.
+    """
+    z_max = check_positive("z_max", z_max)
+    z = _ranges("z", z)
+    return _out(np.where((z >= 0.0) & (z < z_max), 1.0 / z_max, 0.0))
+
+
+def _check_params(params) -> dict[str, float]:
+    """Validate a beam model ``params`` dict (see the module docstring) and return it as floats."""
+    if not isinstance(params, Mapping):
+        raise TypeError(
+            f"params must be a dict with keys {WEIGHT_KEYS + SHAPE_KEYS}, "
+            f"got {type(params).__name__}"
+        )
+    keys = set(params)
+    missing = [k for k in WEIGHT_KEYS + SHAPE_KEYS if k not in keys]
+    unknown = sorted(str(k) for k in keys - set(WEIGHT_KEYS + SHAPE_KEYS))
+    if missing or unknown:
+        raise ValueError(
+            f"params must have exactly the keys {list(WEIGHT_KEYS + SHAPE_KEYS)}"
+            + (f"; missing {missing}" if missing else "")
+            + (f"; unknown {unknown}" if unknown else "")
+        )
+    out = {k: check_positive(f"params['{k}']", params[k], allow_zero=True) for k in WEIGHT_KEYS}
+    total = sum(out[k] for k in WEIGHT_KEYS)
+    if abs(total - 1.0) > WEIGHT_SUM_ATOL:
+        raise ValueError(
+            "the mixture weights params['z_hit'] + ['z_short'] + ['z_max'] + ['z_rand'] "
+            f"must sum to 1, got {total!r}"
+        )
+    for k in SHAPE_KEYS:
+        out[k] = check_positive(f"params['{k}']", params[k])
+    return out
+
+
+def _log_mixture(z: np.ndarray, z_star: np.ndarray, prm: dict[str, float]) -> np.ndarray:
+    r"""Per-beam :math:`\log p(z \mid z^*)` of the mixture, computed from log-components.
+
+    :math:`\log \sum_k w_k p_k = m + \log \sum_k e^{\log w_k + \log p_k - m}` with
+    :math:`m` the largest term (log-sum-exp), so that even a Gaussian term that
+    underflows in linear space (readings many sigma away) keeps its exact log.
+    """
+    zmax, sigma, lam = prm["max_range"], prm["sigma_hit"], prm["lambda_short"]
+    neg_inf = -np.inf
+    with np.errstate(divide="ignore"):
+        log_w = {k: np.log(prm[k]) for k in WEIGHT_KEYS}
+        # log p_hit: log eta - log(sigma sqrt(2 pi)) - u^2 / 2 on [0, zmax].
+        log_norm = np.log(ndtr((zmax - z_star) / sigma) - ndtr(-z_star / sigma))
+        u = (z - z_star) / sigma
+        in_range = (z >= 0.0) & (z <= zmax)
+        hit = np.where(
+            in_range, -0.5 * u * u - log_norm - np.log(sigma * np.sqrt(2.0 * np.pi)), neg_inf
+        )
+        # log p_short: log eta + log lambda - lambda z on [0, z*], none when z* = 0.
+        mass, ok = _short_mass(z_star, lam)
+        short_ok = ok & (z >= 0.0) & (z <= z_star)
+        short = np.where(short_ok, np.log(lam) - lam * z - np.log(np.where(ok, mass, 1.0)), neg_inf)
+        terms = np.stack(
+            [
+                hit + log_w["z_hit"],
+                short + log_w["z_short"],
+                np.where(z == zmax, log_w["z_max"], neg_inf),
+                np.where((z >= 0.0) & (z < zmax), log_w["z_rand"] - np.log(zmax), neg_inf),
+            ]
+        )
+    top = terms.max(axis=0)
+    shift = np.where(np.isfinite(top), top, 0.0)
+    with np.errstate(divide="ignore"):
+        return shift + np.log(np.exp(terms - shift).sum(axis=0))
+
+
+def _check_scan_shapes(z: np.ndarray, z_star: np.ndarray) -> None:
+    if z.ndim not in (1, 2) or z_star.ndim not in (1, 2):
+        raise ValueError(
+            "z must have shape (B,) or (N, B) and z_star (B,) or (N, B), "
+            f"got {z.shape} and {z_star.shape}"
+        )
+    if z.shape[-1] != z_star.shape[-1] or (
+        z.ndim == 2 and z_star.ndim == 2 and z.shape != z_star.shape
+    ):
+        raise ValueError(
+            "z and z_star must have the same number of beams (and poses): "
+            f"got shapes {z.shape} and {z_star.shape}"
+        )
+
+
+def beam_range_finder_model(z, z_star, params, log=False):
+    r"""Likelihood of a whole scan under the beam model (Probabilistic Robotics, Table 6.1).
+
+    For each beam :math:`k` (Table 6.1, lines 5-6)
+
+    .. math::
+
+        p^k = z_{hit}\, p_{hit}(z^k) + z_{short}\, p_{short}(z^k)
+            + z_{max}\, p_{max}(z^k) + z_{rand}\, p_{rand}(z^k),
+
+    and, beams being independent given the pose (line 7),
+
+    .. math::
+
+        q = \prod_{k=1}^{K} p^k, \qquad \log q = \sum_{k=1}^{K} \log p^k.
+
+    The product underflows to 0.0 for a few hundred beams (each :math:`p^k` is
+    typically well below 1, and doubles end near :math:`10^{-308}`);
+    ``log=True`` returns :math:`\log q` as a sum of per-beam logs, so it stays
+    finite and exact for any number of beams. A beam whose mixture itself is
+    near underflow (below ``LOG_SPACE_BELOW``: possible only with
+    :math:`z_{rand} = 0`, a reading far out in the Gaussian's tail) is
+    recomputed with log-sum-exp from the log of each component, so even its
+    log is exact rather than ``-inf``.
+
+    Parameters
+    ----------
+    z : array_like, shape (B,) or (N, B)
+        Measured ranges, metres, in :math:`[0, \text{max\_range}]`; max-range
+        readings exactly ``params["max_range"]`` (see the module docstring).
+    z_star : array_like, shape (B,) or (N, B)
+        Expected ranges from ray casting, metres, in :math:`[0, \text{max\_range}]`;
+        ``(N, B)`` evaluates one scan ``z`` (B,) against N poses, or N scans
+        against N poses when ``z`` is ``(N, B)`` too.
+    params : dict
+        ``{"z_hit", "z_short", "z_max", "z_rand"}``: mixture weights, each
+        >= 0, summing to 1; ``"sigma_hit"`` (m), ``"lambda_short"`` (1/m),
+        ``"max_range"`` (m), each > 0. Exactly these keys.
+    log : bool
+        Return :math:`\log q` instead of :math:`q`.
+
+    Returns
+    -------
+    float or numpy.ndarray, shape (N,)
+        :math:`q` (or :math:`\log q`), a float for a single pose. It is 0
+        (``-inf`` in log form) only when some beam is impossible under the
+        model, e.g. with ``z_rand = 0``; never NaN.
+
+    Raises
+    ------
+    ValueError
+        Bad ``params`` (missing/unknown keys, negative weights, weights not
+        summing to 1, non-positive sigma/lambda/range), ``z``/``z_star`` not
+        finite or outside :math:`[0, \text{max\_range}]`, shapes other than
+        ``(B,)``/``(N, B)`` or with different numbers of beams or poses.
+    TypeError
+        ``params`` not a dict, non-numeric input.
+    """
+    prm = _check_params(params)
+    zmax = prm["max_range"]
+    z = _ranges("z", z)
+    z_star = _ranges("z_star", z_star)
+    _check_scan_shapes(z, z_star)
+    if np.any((z < 0) | (z > zmax)):
+        raise ValueError(
+            f"z must lie in [0, max_range] = [0, {zmax:g}]: map 'no return' readings to exactly "
+            f"max_range, got values in [{z.min():g}, {z.max():g}]"
+        )
+    _check_expected(z_star, zmax)
+    z, z_star = np.broadcast_arrays(z, z_star)
+    # Table 6.1, lines 5-6, for every beam (and pose) at once.
+    p = (
+        prm["z_hit"] * p_hit(z, z_star, zmax, prm["sigma_hit"])
+        + prm["z_short"] * p_short(z, z_star, prm["lambda_short"])
+        + prm["z_max"] * p_max(z, zmax)
+        + prm["z_rand"] * p_rand(z, zmax)
+    )
+    if not log:
+        return _out(np.prod(p, axis=-1))  # line 7
+    with np.errstate(divide="ignore"):
+        log_p = np.log(p)
+    # Beams whose mixture is (near) underflow -- only possible without z_rand, or far
+    # in a Gaussian tail -- are recomputed exactly in log space.
+    tiny = p < LOG_SPACE_BELOW
+    if tiny.any():
+        log_p[tiny] = _log_mixture(z[tiny], z_star[tiny], prm)
+    return _out(log_p.sum(axis=-1))
+
+
+def pose_likelihood_map(scan, grid, beam_angles, params, positions, headings):
+    r"""Log-likelihood of one scan at every combination of candidate position and heading.
+
+    For position :math:`p` and heading :math:`\theta_h`, the pose is
+    :math:`x = (p_x, p_y, \theta_h)`; ray casting on ``grid`` gives the expected
+    ranges :math:`z^{k*}(x)` of the beams at :math:`\theta_h + \alpha_k` and
+
+    .. math::
+
+        L[p, h] = \log p(z \mid x, m) = \sum_k \log p(z^k \mid z^{k*}(x))
+
+    (:func:`beam_range_finder_model` with ``log=True``, Table 6.1). A heat map of
+    :math:`\max_h L[p, h]` answers "where in the map could the robot be?".
+
+    All poses are cast at once with :func:`robolab.raycast.cast_rays`. The ray
+    from position :math:`p` in absolute direction :math:`\phi` does not depend
+    on which heading and beam produced :math:`\phi`, so each distinct direction
+    :math:`\operatorname{wrap}(\theta_h + \alpha_k)` (to within 1e-9 rad) is cast
+    once per position: with headings on the beams' angular lattice (e.g. 61
+    beams over 360 degrees and headings in multiples of 6 degrees) that is
+    ``B`` rays per position instead of ``H * B``.
+
+    A position inside an obstacle gets :math:`z^* = 0` for every beam (the
+    ray-casting convention) and hence a very low, finite score.
+
+    Parameters
+    ----------
+    scan : array_like, shape (B,)
+        Measured ranges, metres, in ``[0, params["max_range"]]``.
+    grid : OccupancyGrid
+        The map.
+    beam_angles : array_like, shape (B,)
+        Beam angles relative to the robot's heading, radians.
+    params : dict
+        Beam model parameters, see :func:`beam_range_finder_model`.
+    positions : array_like, shape (P, 2)
+        Candidate positions ``(x, y)``, metres, world frame.
+    headings : array_like, shape (H,)
+        Candidate headings, radians.
+
+    Returns
+    -------
+    numpy.ndarray, shape (P, H)
+        ``L[p, h]``, the log-likelihood of the scan at pose
+        ``(positions[p, 0], positions[p, 1], headings[h])``.
+
+    Raises
+    ------
+    ValueError
+        Shapes other than stated, non-finite values, ranges outside
+        ``[0, max_range]``, bad ``params``.
+    TypeError
+        ``grid`` not an OccupancyGrid, ``params`` not a dict, non-numeric input.
+    """
+    prm = _check_params(params)
+    if not isinstance(grid, OccupancyGrid):
+        raise TypeError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
+    scan = _ranges("scan", as_array("scan", scan, ndim=1))
+    beam_angles = as_array("beam_angles", beam_angles, shape=(scan.shape[0],), finite=True)
+    positions = as_array("positions", positions, ndim=2, finite=True)
+    if positions.shape[1] != 2:
+        raise ValueError(f"positions must have shape (P, 2), got {positions.shape}")
+    headings = as_array("headings", headings, ndim=1, finite=True)
+    n_pos, n_head, n_beam = positions.shape[0], headings.shape[0], scan.shape[0]
+    out = np.empty((n_pos, n_head))
+    if out.size == 0:
+        return out
+    # Distinct absolute beam directions, each cast once per position.
+    directions = wrap_angle(headings[:, None] + beam_angles[None, :]).reshape(-1)
+    keys, inverse = np.unique(np.round(directions / ANGLE_QUANTUM), return_inverse=True)
+    unique_angles = keys * ANGLE_QUANTUM
+    per = max(1, CHUNK_BEAMS // max(1, n_head * n_beam))
+    for i in range(0, n_pos, per):
+        chunk = positions[i : i + per]
+        poses = np.column_stack([chunk, np.zeros(len(chunk))])
+        z_star = cast_rays(grid, poses, unique_angles, prm["max_range"])[:, inverse]
+        out[i : i + per] = np.reshape(
+            beam_range_finder_model(scan, z_star.reshape(-1, n_beam), prm, log=True),
+            (len(chunk), n_head),
+        )
+    return out
