@@ -55,14 +55,26 @@ _collector_key = pytest.StashKey["GradingCollector"]()
 
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("robolab")
-    group.addoption("--notebook", action="store", default=None, metavar="PATH",
-                    help="grade the student notebook at PATH instead of the reference solutions")
-    group.addoption("--grading-report", action="store", default=None, metavar="PATH",
-                    help="write per-test exercise, points, outcome and failure message as JSON to PATH")
+    group.addoption(
+        "--notebook",
+        action="store",
+        default=None,
+        metavar="PATH",
+        help="grade the student notebook at PATH instead of the reference solutions",
+    )
+    group.addoption(
+        "--grading-report",
+        action="store",
+        default=None,
+        metavar="PATH",
+        help="write per-test exercise, points, outcome and failure message as JSON to PATH",
+    )
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    config.addinivalue_line("markers", f"{MARKER}(exercise, points): hidden test grading one exercise function")
+    config.addinivalue_line(
+        "markers", f"{MARKER}(exercise, points): hidden test grading one exercise function"
+    )
     config.stash[_problems_key] = []
     path = config.getoption("--grading-report")
     if path:
@@ -76,7 +88,7 @@ def lab_name_of(module_name: str) -> str:
     leaf = module_name.rsplit(".", 1)[-1]
     if not leaf.startswith("test_"):
         raise ValueError(f"hidden test module {module_name!r} must be named test_<lab>")
-    return leaf[len("test_"):]
+    return leaf[len("test_") :]
 
 
 @pytest.fixture(scope="module")
@@ -126,7 +138,9 @@ def grade_of(item: pytest.Item) -> Grade | None:
     points = mark.kwargs.get("points", args.pop(0) if args else None)
     extra = set(mark.kwargs) - {"exercise", "points"}
     if args or extra:
-        raise ValueError(f"grades takes (exercise, points=N) only, got extra {args or sorted(extra)}")
+        raise ValueError(
+            f"grades takes (exercise, points=N) only, got extra {args or sorted(extra)}"
+        )
     if not isinstance(exercise, str) or not exercise.isidentifier():
         raise ValueError(f"grades needs the exercise's function name first, got {exercise!r}")
     if isinstance(points, bool) or not isinstance(points, (int, float)) or not points > 0:
@@ -139,7 +153,9 @@ def _is_hidden_test(item: pytest.Item) -> bool:
     return folder.name == "labs" and folder.parent.name == "tests"
 
 
-def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config, items: list[pytest.Item]) -> None:
+def pytest_collection_modifyitems(
+    session: pytest.Session, config: pytest.Config, items: list[pytest.Item]
+) -> None:
     problems = []
     for item in items:
         try:
@@ -148,8 +164,10 @@ def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config
             problems.append(f"{item.nodeid}: {exc}")
             continue
         if grade is None and _is_hidden_test(item):
-            problems.append(f"{item.nodeid}: hidden tests must be marked "
-                            f"@pytest.mark.{MARKER}(\"<exercise>\", points=N)")
+            problems.append(
+                f"{item.nodeid}: hidden tests must be marked "
+                f'@pytest.mark.{MARKER}("<exercise>", points=N)'
+            )
     if problems:
         raise pytest.UsageError("malformed hidden tests:\n  " + "\n  ".join(problems))
 
@@ -160,8 +178,12 @@ def pytest_collection_modifyitems(session: pytest.Session, config: pytest.Config
 def describe(item: pytest.Item) -> str:
     """A test's name in words: its docstring's first line, else its name without ``test_``."""
     doc = (getattr(getattr(item, "obj", None), "__doc__", None) or "").strip()
-    base = doc.splitlines()[0].strip() if doc else item.name.split("[")[0].removeprefix("test_").replace("_", " ")
-    param = item.name[len(item.name.split("[")[0]):]
+    base = (
+        doc.splitlines()[0].strip()
+        if doc
+        else item.name.split("[")[0].removeprefix("test_").replace("_", " ")
+    )
+    param = item.name[len(item.name.split("[")[0]) :]
     return base + (f" {param}" if param else "")
 
 
@@ -191,14 +213,17 @@ def failure_message(exc: BaseException | None, crash_message: str | None) -> str
     text = text.strip()
     if len(text) > MAX_MESSAGE_CHARS:
         half = MAX_MESSAGE_CHARS // 2
-        text = f"{text[:half]}\n... ({len(text) - MAX_MESSAGE_CHARS} characters cut) ...\n{text[-half:]}"
+        cut = len(text) - MAX_MESSAGE_CHARS
+        text = f"{text[:half]}\n... ({cut} characters cut) ...\n{text[-half:]}"
     return text
 
 
 def _plain(obj: Any) -> dict:
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        return {k: v if isinstance(v, (int, float, str, type(None))) else str(v)
-                for k, v in dataclasses.asdict(obj).items()}
+        return {
+            k: v if isinstance(v, (int, float, str, type(None))) else str(v)
+            for k, v in dataclasses.asdict(obj).items()
+        }
     return {f: str(getattr(obj, f, "")) for f in ("cell_index", "kind", "message")}
 
 
@@ -217,15 +242,24 @@ class GradingCollector:
 
     def _record(self, item: pytest.Item) -> dict:
         grade = grade_of(item)
-        return self.records.setdefault(item.nodeid, {
-            "nodeid": item.nodeid, "name": item.name, "description": describe(item),
-            "exercise": grade.exercise if grade else None, "points": grade.points if grade else 0.0,
-            "outcome": "not run", "message": "",
-        })
+        return self.records.setdefault(
+            item.nodeid,
+            {
+                "nodeid": item.nodeid,
+                "name": item.name,
+                "description": describe(item),
+                "exercise": grade.exercise if grade else None,
+                "points": grade.points if grade else 0.0,
+                "outcome": "not run",
+                "message": "",
+            },
+        )
 
     def pytest_collectreport(self, report: pytest.CollectReport) -> None:
         if report.failed:
-            self.collection_errors.append(f"{report.nodeid}: {str(report.longrepr)[-MAX_MESSAGE_CHARS:]}")
+            self.collection_errors.append(
+                f"{report.nodeid}: {str(report.longrepr)[-MAX_MESSAGE_CHARS:]}"
+            )
 
     def pytest_collection_finish(self, session: pytest.Session) -> None:
         for item in session.items:

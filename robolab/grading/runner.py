@@ -1,0 +1,288 @@
+"""Grade submissions: one pytest subprocess per notebook, in parallel.
+
+The grader process that runs pytest holds the hidden tests and the reference
+solutions; the student's code runs behind the ``lab`` fixture in the isolated
+worker (:mod:`robolab.grading.proxy`). This module only drives those pytest
+runs and reads back the JSON report of :mod:`robolab.grading.pytest_plugin`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tqdm import tqdm
+
+from robolab.grading.labs import LabError, find_lab, lab_of_notebook, project_root
+
+__all__ = [
+    "DEFAULT_TIMEOUT",
+    "SubmissionResult",
+    "TestOutcome",
+    "grade_all",
+    "grade_submission",
+    "submission_names",
+]
+
+#: Seconds one submission may take in total before its pytest run is stopped.
+DEFAULT_TIMEOUT = 600.0
+#: Seconds between asking pytest to stop (SIGINT: fixtures close the worker) and killing it.
+_GRACE = 5.0
+#: pytest exit codes that mean the hidden tests ran (0: all passed, 1: some failed).
+_RAN = (0, 1)
+
+
+@dataclass(frozen=True)
+class TestOutcome:
+    """One hidden test's result for one submission."""
+
+    __test__ = False  # a result, not a pytest test class
+
+    nodeid: str
+    description: str
+    exercise: str
+    points: float
+    outcome: str  # passed | failed | error | skipped | not run
+    message: str = ""
+
+    @property
+    def passed(self) -> bool:
+        return self.outcome == "passed"
+
+
+@dataclass
+class SubmissionResult:
+    """Everything known about grading one submission.
+
+    ``errors`` are problems with the submission or its run, shown to the
+    student; ``fatal`` is set when grading itself could not run (no hidden
+    tests, pytest broken), which is the instructor's problem.
+    """
+
+    path: Path
+    name: str
+    lab: str | None
+    tests: list[TestOutcome] = field(default_factory=list)
+    problems: list[dict] = field(default_factory=list)
+    errors: list[str] = field(default_factory=list)
+    fatal: bool = False
+    seconds: float = 0.0
+
+    def exercise_scores(self) -> dict[str, tuple[float, float]]:
+        """``{exercise: (earned, possible)}`` in the order the tests run."""
+        scores: dict[str, tuple[float, float]] = {}
+        for t in self.tests:
+            earned, possible = scores.get(t.exercise, (0.0, 0.0))
+            scores[t.exercise] = (earned + (t.points if t.passed else 0.0), possible + t.points)
+        return scores
+
+    @property
+    def total(self) -> float:
+        return sum(t.points for t in self.tests if t.passed)
+
+    @property
+    def max_points(self) -> float:
+        return sum(t.points for t in self.tests)
+
+
+def submission_names(paths: Sequence[Path]) -> list[str]:
+    """Unique, file-name-safe names: the stem, or ``<folder>-<stem>`` when stems repeat."""
+    stems = [p.stem for p in paths]
+    names = [
+        s if stems.count(s) == 1 else f"{p.parent.name}-{s}"
+        for p, s in zip(paths, stems, strict=True)
+    ]
+    seen: dict[str, int] = {}
+    unique = []
+    for n in names:
+        seen[n] = seen.get(n, 0) + 1
+        unique.append(n if seen[n] == 1 else f"{n}-{seen[n]}")
+    return unique
+
+
+def _pytest_command(
+    python: str, root: Path, tests: Path, notebook: Path, report: Path
+) -> list[str]:
+    return [
+        python,
+        "-m",
+        "pytest",
+        str(tests),
+        "--rootdir",
+        str(root),
+        "--notebook",
+        str(notebook),
+        "--grading-report",
+        str(report),
+        "-p",
+        "robolab.grading.pytest_plugin",
+        "-p",
+        "no:cacheprovider",
+        "-q",
+        "--tb=no",
+        "--no-header",
+    ]
+
+
+def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | None, float]:
+    """Run ``cmd`` in its own session; on timeout SIGINT then SIGKILL its process group.
+
+    Returns the exit code (None after a timeout) and the seconds it took.
+    """
+    env = dict(
+        os.environ,
+        PYTEST_DISABLE_PLUGIN_AUTOLOAD="1",
+        MPLBACKEND="Agg",
+        PYTHONDONTWRITEBYTECODE="1",
+    )
+    start = time.monotonic()
+    with log.open("wb") as out:
+        proc = subprocess.Popen(
+            cmd,
+            cwd=cwd,
+            env=env,
+            stdin=subprocess.DEVNULL,
+            stdout=out,
+            stderr=subprocess.STDOUT,
+            start_new_session=True,
+        )
+        try:
+            code: int | None = proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            code = None
+            # SIGINT first so pytest's finalizers close the student's worker, then make sure.
+            for sig, wait in ((signal.SIGINT, _GRACE), (signal.SIGKILL, None)):
+                try:
+                    os.killpg(proc.pid, sig)
+                    proc.wait(timeout=wait)
+                    break
+                except ProcessLookupError:
+                    break
+                except subprocess.TimeoutExpired:
+                    continue
+    return code, time.monotonic() - start
+
+
+def _tail(path: Path, chars: int = 1500) -> str:
+    try:
+        return path.read_text(errors="replace")[-chars:].strip()
+    except OSError:
+        return ""
+
+
+def grade_submission(
+    path: Path,
+    *,
+    lab: str | None = None,
+    name: str | None = None,
+    root: Path | None = None,
+    timeout: float = DEFAULT_TIMEOUT,
+    python: str | None = None,
+) -> SubmissionResult:
+    """Run the hidden tests of the submission's lab on the notebook at ``path``.
+
+    Never raises for a bad submission: what went wrong is in the result's
+    ``errors`` (and ``fatal`` when the grader itself is at fault).
+    """
+    path = Path(path)
+    result = SubmissionResult(path=path, name=name or path.stem, lab=lab)
+    if result.lab is None:
+        try:
+            result.lab = lab_of_notebook(path)
+        except LabError as exc:
+            result.errors.append(str(exc))
+            return result
+        if result.lab is None:
+            result.errors.append(
+                "the notebook does not say which lab it is (no robolab.lab in its metadata) "
+                "and no --lab was given"
+            )
+            return result
+    try:
+        spec = find_lab(result.lab, root)
+    except LabError as exc:
+        result.errors.append(str(exc))
+        result.fatal = True
+        return result
+
+    with tempfile.TemporaryDirectory(prefix="robolab-grade-") as tmp:
+        report_path, log = Path(tmp) / "report.json", Path(tmp) / "pytest.log"
+        cmd = _pytest_command(
+            python or sys.executable, spec.root, spec.hidden_tests, path.resolve(), report_path
+        )
+        code, result.seconds = _run(cmd, spec.root, log, timeout)
+        report = json.loads(report_path.read_text()) if report_path.is_file() else None
+        log_tail = _tail(log)
+
+    if report is None:
+        result.fatal = code is not None
+        result.errors.append(
+            f"grading timed out after {timeout:g} s"
+            if code is None
+            else f"pytest could not run the hidden tests (exit {code}): {log_tail}"
+        )
+        return result
+    result.problems = list(report.get("problems", []))
+    if report.get("collection_errors") or (code is not None and code not in _RAN):
+        result.fatal = True
+        result.errors.append(
+            f"the hidden tests of lab {result.lab!r} could not run (pytest exit {code}); "
+            "see the grader's log"
+        )
+        print(f"robolab grade: {path}: pytest exit {code}\n{log_tail}", file=sys.stderr)
+        return result  # no score: the grader, not the submission, is at fault
+    if code is None:
+        result.errors.append(
+            f"grading timed out after {timeout:g} s; tests that had not finished earn nothing"
+        )
+    result.tests = [
+        TestOutcome(
+            nodeid=t["nodeid"],
+            description=t["description"],
+            exercise=t["exercise"],
+            points=float(t["points"]),
+            outcome=t["outcome"],
+            message=t.get("message", ""),
+        )
+        for t in report.get("tests", [])
+    ]
+    return result
+
+
+def grade_all(
+    paths: Sequence[Path],
+    *,
+    lab: str | None = None,
+    root: Path | None = None,
+    jobs: int = 1,
+    timeout: float = DEFAULT_TIMEOUT,
+    progress: bool = True,
+) -> list[SubmissionResult]:
+    """Grade every submission, ``jobs`` at a time; results come back in the order of ``paths``."""
+    if jobs < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs}")
+    root = root or project_root()
+    paths = [Path(p) for p in paths]
+    names = submission_names(paths)
+    results: list[SubmissionResult | None] = [None] * len(paths)
+    with (
+        ThreadPoolExecutor(max_workers=jobs) as pool,
+        tqdm(total=len(paths), unit="submission", disable=not progress, file=sys.stderr) as bar,
+    ):
+        futures = {
+            pool.submit(grade_submission, p, lab=lab, name=n, root=root, timeout=timeout): i
+            for i, (p, n) in enumerate(zip(paths, names, strict=True))
+        }
+        for future in as_completed(futures):
+            results[futures[future]] = future.result()
+            bar.update(1)
+    return [r for r in results if r is not None]

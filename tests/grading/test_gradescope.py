@@ -1,0 +1,139 @@
+"""The Gradescope bundle: its layout, and its run_autograder on a sample submission."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import stat
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from robolab.cli import main
+from robolab.grading.gradescope import build_bundle, find_submission
+
+REPO = Path(__file__).resolve().parents[2]
+CORRECT = REPO / "examples" / "submissions" / "demo" / "correct.ipynb"
+
+
+@pytest.fixture(scope="module")
+def bundle(tmp_path_factory) -> Path:
+    return build_bundle("demo", tmp_path_factory.mktemp("gs") / "autograder.zip")
+
+
+@pytest.fixture
+def autograder(bundle, tmp_path) -> Path:
+    """The bundle laid out as Gradescope does: unpacked into source/, run_autograder copied up."""
+    home = tmp_path / "autograder"
+    with zipfile.ZipFile(bundle) as zf:
+        zf.extractall(home / "source")
+    shutil.copy(home / "source" / "run_autograder", home / "run_autograder")
+    (home / "submission").mkdir()
+    # In Gradescope, setup.sh installs robolab editable from source/, so the isolated worker
+    # (`python -I -m robolab.grading.worker`) imports that same copy. Here the installed
+    # robolab is the repository's, so point source/robolab at it: grader and worker must
+    # agree on one robolab, whose folder is the only code the sandbox lets the worker read.
+    assert (home / "source" / "robolab" / "grading" / "runner.py").is_file()
+    shutil.rmtree(home / "source" / "robolab")
+    (home / "source" / "robolab").symlink_to(REPO / "robolab")
+    return home
+
+
+def run_autograder(home: Path) -> subprocess.CompletedProcess:
+    env = dict(os.environ, ROBOLAB_AUTOGRADER_DIR=str(home), ROBOLAB_PYTHON=sys.executable)
+    return subprocess.run(
+        ["bash", str(home / "run_autograder")], env=env, capture_output=True, text=True, timeout=300
+    )
+
+
+def test_layout(bundle):
+    with zipfile.ZipFile(bundle) as zf:
+        names = set(zf.namelist())
+        modes = {i.filename: i.external_attr >> 16 for i in zf.infolist()}
+    for required in (
+        "setup.sh",
+        "run_autograder",
+        "pyproject.toml",
+        "README.md",
+        "robolab/__init__.py",
+        "robolab/grading/runner.py",
+        "robolab/grading/proxy.py",
+        "solutions/__init__.py",
+        "solutions/demo.py",
+        "tests/__init__.py",
+        "tests/labs/__init__.py",
+        "tests/labs/test_demo.py",
+    ):
+        assert required in names, required
+    assert modes["run_autograder"] & stat.S_IXUSR and modes["setup.sh"] & stat.S_IXUSR
+    # only this lab's answers and hidden tests travel
+    assert {n for n in names if n.startswith(("solutions/", "tests/"))} == {
+        "solutions/__init__.py",
+        "solutions/demo.py",
+        "tests/__init__.py",
+        "tests/labs/__init__.py",
+        "tests/labs/test_demo.py",
+    }
+    assert not any("__pycache__" in n or n.endswith(".pyc") for n in names)
+
+
+def test_scripts_are_valid_bash(autograder):
+    for script in ("setup.sh", "run_autograder"):
+        proc = subprocess.run(
+            ["bash", "-n", str(autograder / "source" / script)], capture_output=True, text=True
+        )
+        assert proc.returncode == 0, proc.stderr
+    setup = (autograder / "source" / "setup.sh").read_text()
+    assert "pip install" in setup and "-e /autograder/source" in setup
+
+
+def test_run_autograder_grades_the_submission(autograder):
+    shutil.copy(CORRECT, autograder / "submission" / "my_work.ipynb")
+    # prove the bundle's own hidden tests run: make one test worth one point more inside the bundle
+    tests = autograder / "source" / "tests" / "labs" / "test_demo.py"
+    text = tests.read_text()
+    tests.write_text(
+        text.replace(
+            '@pytest.mark.grades("wrap", points=10)', '@pytest.mark.grades("wrap", points=11)', 1
+        )
+    )
+    proc = run_autograder(autograder)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    results = json.loads((autograder / "results" / "results.json").read_text())
+    assert results["score"] == 101
+    assert len(results["tests"]) == 11
+    assert sum(t["max_score"] for t in results["tests"]) == 101
+    assert all(t["score"] == t["max_score"] and t["status"] == "passed" for t in results["tests"])
+    first = results["tests"][0]
+    assert set(first) >= {"name", "score", "max_score", "output"}
+    assert first["name"].startswith("normalize: ")
+    assert "Score: **101 / 101**" in results["output"]
+
+
+def test_run_autograder_without_a_notebook_scores_zero(autograder):
+    proc = run_autograder(autograder)
+    assert proc.returncode == 0, proc.stderr
+    results = json.loads((autograder / "results" / "results.json").read_text())
+    assert results["score"] == 0 and results["tests"] == []
+    assert "no .ipynb notebook was submitted" in results["output"]
+
+
+def test_find_submission_picks_the_lab_notebook(tmp_path):
+    shutil.copy(CORRECT, tmp_path / "demo.ipynb")
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "scratch.ipynb").write_text(
+        '{"cells": [], "metadata": {}, "nbformat": 4, "nbformat_minor": 5}'
+    )
+    assert find_submission(tmp_path, "demo") == tmp_path / "demo.ipynb"
+    with pytest.raises(FileNotFoundError, match="several notebooks"):
+        find_submission(tmp_path, "bayes")
+
+
+def test_cli_refuses_an_unknown_lab(tmp_path, capsys):
+    assert main(["gradescope", "--lab", "no_such_lab", "-o", str(tmp_path / "a.zip")]) == 2
+    assert "no hidden tests" in capsys.readouterr().err
+    assert not (tmp_path / "a.zip").exists()

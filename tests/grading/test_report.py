@@ -1,0 +1,144 @@
+"""Gradebook, feedback and summary table from hand-made results."""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+from robolab.grading.report import render_feedback, summary_table, write_feedback, write_gradebook
+from robolab.grading.runner import SubmissionResult, TestOutcome
+
+
+def outcome(
+    exercise: str, points: float, passed: bool, message: str = "", description: str = ""
+) -> TestOutcome:
+    return TestOutcome(
+        nodeid=f"tests/labs/test_demo.py::test_{exercise}_{points}",
+        exercise=exercise,
+        description=description or f"{exercise}: check worth {points}",
+        points=points,
+        outcome="passed" if passed else "failed",
+        message=message,
+    )
+
+
+def partial_result() -> SubmissionResult:
+    return SubmissionResult(
+        path=Path("subs/alice.ipynb"),
+        name="alice",
+        lab="demo",
+        seconds=1.234,
+        tests=[
+            outcome("normalize", 30, True),
+            outcome("normalize", 10, True),
+            outcome("wrap", 20, True),
+            outcome(
+                "wrap",
+                10,
+                False,
+                "AssertionError: wrap(3.14159): expected -pi, got 3.14159",
+                "wrap: both pi and -pi wrap to -pi",
+            ),
+            outcome("mean_pose", 25, False, "NotImplementedError: \nTraceback: cell 9"),
+            outcome("mean_pose", 5, False, "NotImplementedError: \nTraceback: cell 9"),
+        ],
+        problems=[{"cell_index": 4, "kind": "syntax", "message": "invalid syntax (line 2)"}],
+    )
+
+
+def other_lab_result() -> SubmissionResult:
+    return SubmissionResult(
+        path=Path("subs/bob.ipynb"),
+        name="bob",
+        lab="bayes",
+        tests=[outcome("bayes_posterior", 100, True)],
+    )
+
+
+def broken_result() -> SubmissionResult:
+    return SubmissionResult(
+        path=Path("subs/carol.ipynb"),
+        name="carol",
+        lab=None,
+        errors=["the notebook does not say which lab it is"],
+    )
+
+
+def test_scores_add_up():
+    r = partial_result()
+    assert r.exercise_scores() == {"normalize": (40, 40), "wrap": (20, 30), "mean_pose": (0, 30)}
+    assert (r.total, r.max_points) == (60, 100)
+
+
+def test_feedback_says_what_failed_in_words():
+    text = render_feedback(partial_result())
+    assert "**60 / 100**" in text
+    assert (
+        "## `normalize`: 40 / 40 points" in text
+        and "Every hidden check of this function passed." in text
+    )
+    assert "- **both pi and -pi wrap to -pi** (10 points) failed:" in text
+    assert "expected -pi, got 3.14159" in text
+    # a stub is named once, not as a list of failing checks
+    assert "Not implemented yet: `mean_pose` still raises NotImplementedError." in text
+    assert "cell 9" not in text
+    assert "cell 4 (syntax): invalid syntax (line 2)" in text
+    assert "nodeid" not in text and "test_demo.py" not in text
+
+
+def test_feedback_for_an_ungraded_submission_explains_why():
+    text = render_feedback(broken_result())
+    assert "## Grading problems" in text and "does not say which lab" in text
+    assert "Score" not in text
+
+
+def test_gradebook_has_a_row_per_submission(tmp_path):
+    results = [partial_result(), other_lab_result(), broken_result()]
+    csv_path, json_path = write_gradebook(results, tmp_path)
+    rows = list(csv.DictReader(csv_path.open()))
+    assert [r["submission"] for r in rows] == ["alice", "bob", "carol"]
+    assert list(rows[0]) == [
+        "submission",
+        "lab",
+        "normalize",
+        "wrap",
+        "mean_pose",
+        "bayes_posterior",
+        "total",
+        "max",
+        "errors",
+    ]
+    assert (rows[0]["wrap"], rows[0]["bayes_posterior"], rows[0]["total"], rows[0]["max"]) == (
+        "20",
+        "",
+        "60",
+        "100",
+    )
+    assert (
+        rows[2]["errors"] == "the notebook does not say which lab it is" and rows[2]["total"] == "0"
+    )
+    data = json.loads(json_path.read_text())
+    assert data[0]["exercises"]["wrap"] == {"earned": 20, "possible": 30}
+    assert data[0]["load_problems"] == 1 and data[2]["errors"]
+
+
+def test_feedback_files_are_named_after_submissions(tmp_path):
+    paths = write_feedback([partial_result(), broken_result()], tmp_path)
+    assert [p.relative_to(tmp_path).as_posix() for p in paths] == [
+        "feedback/alice.md",
+        "feedback/carol.md",
+    ]
+    assert paths[0].read_text() == render_feedback(partial_result())
+
+
+def test_summary_table_lines_up():
+    table = summary_table([partial_result(), other_lab_result(), broken_result()])
+    lines = table.splitlines()
+    assert lines[0].split() == ["submission", "lab", "score", "time", "details"]
+    assert "60/100" in lines[2] and "wrap 20/30, mean_pose 0/30; 1 cell(s) skipped" in lines[2]
+    assert "100/100" in lines[3] and "full marks" in lines[3]
+    assert lines[4].split()[:3] == ["carol", "?", "-"]
+    # columns are aligned: the score column ends at the same offset on every row
+    ends = {line.index("/100") + 4 for line in lines[2:4]}
+    assert len(ends) == 1
