@@ -170,13 +170,16 @@ class Scans:
 
     @property
     def valid(self) -> np.ndarray:
-        """``(T, B)`` bool: real returns (finite, > 0, within ``[range_min, range_max]``).
+        """``(T, B)`` bool: real returns (finite, > 0, within ``[range_min, range_max)``).
 
-        0, inf and NaN mean "no return" and are never turned into hits.
+        0, inf and NaN mean "no return" and are never turned into hits. A reading
+        of exactly ``range_max`` is a max-range reading (a failed return, the beam
+        model's ``p_max``), not an obstacle at ``range_max``: AMCL and gmapping
+        skip it too.
         """
         r = self.ranges
         with np.errstate(invalid="ignore"):
-            return np.isfinite(r) & (r > 0) & (r >= self.range_min) & (r <= self.range_max)
+            return np.isfinite(r) & (r > 0) & (r >= self.range_min) & (r < self.range_max)
 
     def endpoints(self, i: int, laser_pose=(0.0, 0.0, 0.0)) -> np.ndarray:
         """Endpoints of the valid beams of scan ``i``.
