@@ -15,22 +15,41 @@ from pathlib import Path
 
 
 def _build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="robolab", description="robolab: probabilistic-robotics labs and their autograder")
-    p.add_argument("--version", action="version", version=f"robolab {__import__('robolab').__version__}")
+    p = argparse.ArgumentParser(
+        prog="robolab", description="robolab: probabilistic-robotics labs and their autograder"
+    )
+    p.add_argument(
+        "--version", action="version", version=f"robolab {__import__('robolab').__version__}"
+    )
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    d = sub.add_parser("data", help="regenerate the bundled data (maps, bags, data sets) deterministically")
-    d.add_argument("--out", type=Path, default=None, help="output folder (default: the repository's data/)")
-    d.add_argument("--only", nargs="*", default=None, metavar="NAME", help="regenerate only these data sets")
+    d = sub.add_parser(
+        "data", help="regenerate the bundled data (maps, bags, data sets) deterministically"
+    )
+    d.add_argument(
+        "--out", type=Path, default=None, help="output folder (default: the repository's data/)"
+    )
+    d.add_argument(
+        "--only", nargs="*", default=None, metavar="NAME", help="regenerate only these data sets"
+    )
 
     g = sub.add_parser("grade", help="grade student notebooks against the hidden tests")
     g.add_argument("submissions", nargs="+", type=Path, help="submitted .ipynb files")
-    g.add_argument("--lab", default=None, help="lab name (default: read from each notebook's metadata)")
-    g.add_argument("--out", type=Path, default=Path("grades"), help="folder for gradebook and feedback")
+    g.add_argument(
+        "--lab", default=None, help="lab name (default: read from each notebook's metadata)"
+    )
+    g.add_argument(
+        "--out", type=Path, default=Path("grades"), help="folder for gradebook and feedback"
+    )
     g.add_argument("-j", "--jobs", type=int, default=1, help="submissions graded in parallel")
-    g.add_argument("--timeout", type=float, default=None, metavar="SECONDS",
-                   help="overall time limit per submission (default 600)")
+    g.add_argument(
+        "--timeout",
+        type=float,
+        default=None,
+        metavar="SECONDS",
+        help="overall time limit per submission (default 600)",
+    )
 
     c = sub.add_parser("check", help="run a notebook's visible checks (for students)")
     c.add_argument("notebook", type=Path)
@@ -58,8 +77,9 @@ def main(argv: list[str] | None = None) -> int:
     from robolab.grading import commands
 
     if args.command == "grade":
-        return commands.grade(args.submissions, lab=args.lab, out=args.out, jobs=args.jobs,
-                              timeout=args.timeout)
+        return commands.grade(
+            args.submissions, lab=args.lab, out=args.out, jobs=args.jobs, timeout=args.timeout
+        )
     if args.command == "check":
         return commands.check(args.notebook)
     if args.command == "solve":

@@ -71,7 +71,9 @@ class OccupancyGrid:
             raise ValueError("data must be a non-empty 2D array")
         known = data[data != UNKNOWN]
         if np.any(~np.isfinite(known)) or np.any((known < 0) | (known > 1)):
-            raise ValueError("data values must be occupancy probabilities in [0, 1] or -1 (unknown)")
+            raise ValueError(
+                "data values must be occupancy probabilities in [0, 1] or -1 (unknown)"
+            )
         origin = as_array("origin", self.origin, shape=(3,), finite=True)
         # A grid is immutable: caches keyed on it (ray casting, distance fields) stay
         # valid, and an update makes a new grid with `with_data`.
@@ -125,7 +127,7 @@ class OccupancyGrid:
 
     # -- conversion: the one place that maps between cells and metres ------------------
     def world_to_map(self, xy) -> np.ndarray:
-        """Continuous map coordinates (in cells) of world points: ``(..., 2)`` -> ``(..., 2)`` as (col, row)."""
+        """Map coordinates in cells, ``(..., 2)`` as (col, row), of world points ``(..., 2)``."""
         p = np.asarray(xy, dtype=float)
         d = p - self.origin[:2]
         c, s = np.cos(self.origin[2]), np.sin(self.origin[2])
@@ -152,7 +154,12 @@ class OccupancyGrid:
     def contains_cell(self, cells) -> np.ndarray:
         """Boolean mask: which ``(row, col)`` indices lie inside the grid."""
         rc = np.asarray(cells)
-        return (rc[..., 0] >= 0) & (rc[..., 0] < self.shape[0]) & (rc[..., 1] >= 0) & (rc[..., 1] < self.shape[1])
+        return (
+            (rc[..., 0] >= 0)
+            & (rc[..., 0] < self.shape[0])
+            & (rc[..., 1] >= 0)
+            & (rc[..., 1] < self.shape[1])
+        )
 
     def contains(self, xy) -> np.ndarray:
         """Boolean mask: which world points lie inside the grid."""
@@ -198,7 +205,9 @@ def _read_image(path: Path) -> np.ndarray:
         raise MapFormatError(f"map image {str(path)!r} is not a readable image: {exc}") from exc
 
 
-def load_map(path, *, resolution: float = 1.0, origin=(0.0, 0.0, 0.0), level: float = 0.5) -> OccupancyGrid:
+def load_map(
+    path, *, resolution: float = 1.0, origin=(0.0, 0.0, 0.0), level: float = 0.5
+) -> OccupancyGrid:
     """Load an occupancy grid from an image or a ROS map_server YAML file.
 
     Parameters
@@ -226,7 +235,9 @@ def load_map(path, *, resolution: float = 1.0, origin=(0.0, 0.0, 0.0), level: fl
     if path.suffix.lower() in (".yaml", ".yml"):
         return _load_map_server(path)
     if path.suffix.lower() not in _IMAGE_SUFFIXES:
-        raise MapFormatError(f"{str(path)!r}: unknown map format {path.suffix!r}; expected .yaml or an image")
+        raise MapFormatError(
+            f"{str(path)!r}: unknown map format {path.suffix!r}; expected .yaml or an image"
+        )
     occ = image_to_occupancy(_read_image(path), level)
     return OccupancyGrid(np.flipud(occ), resolution, np.asarray(origin, dtype=float))
 
@@ -239,7 +250,9 @@ def _load_map_server(path: Path) -> OccupancyGrid:
     except (yaml.YAMLError, UnicodeDecodeError) as exc:
         raise MapFormatError(f"map file {str(path)!r} is not valid YAML: {exc}") from exc
     if not isinstance(meta, dict):
-        raise MapFormatError(f"map file {str(path)!r} must be a YAML mapping with image, resolution and origin")
+        raise MapFormatError(
+            f"map file {str(path)!r} must be a YAML mapping with image, resolution and origin"
+        )
     missing = [k for k in ("image", "resolution", "origin") if k not in meta]
     if missing:
         raise MapFormatError(f"map file {str(path)!r} lacks required key(s): {', '.join(missing)}")
@@ -252,16 +265,24 @@ def _load_map_server(path: Path) -> OccupancyGrid:
     except (TypeError, ValueError) as exc:
         raise MapFormatError(f"map file {str(path)!r} has a non-numeric value: {exc}") from exc
     if not np.isfinite(resolution) or not np.all(np.isfinite(origin)):
-        raise MapFormatError(f"map file {str(path)!r}: resolution and origin must be finite numbers")
+        raise MapFormatError(
+            f"map file {str(path)!r}: resolution and origin must be finite numbers"
+        )
     if origin.shape != (3,):
-        raise MapFormatError(f"map file {str(path)!r}: origin must be [x, y, yaw], got {meta['origin']!r}")
+        raise MapFormatError(
+            f"map file {str(path)!r}: origin must be [x, y, yaw], got {meta['origin']!r}"
+        )
     if resolution <= 0:
         raise MapFormatError(f"map file {str(path)!r}: resolution must be > 0, got {resolution}")
     if not 0 <= free_th < occ_th <= 1:
-        raise MapFormatError(f"map file {str(path)!r}: need 0 <= free_thresh < occupied_thresh <= 1")
+        raise MapFormatError(
+            f"map file {str(path)!r}: need 0 <= free_thresh < occupied_thresh <= 1"
+        )
     mode = str(meta.get("mode", "trinary"))
     if mode not in ("trinary", "scale"):
-        raise MapFormatError(f"map file {str(path)!r}: mode {mode!r} not supported (trinary or scale)")
+        raise MapFormatError(
+            f"map file {str(path)!r}: mode {mode!r} not supported (trinary or scale)"
+        )
     image_path = Path(meta["image"])
     if not image_path.is_absolute():
         image_path = path.parent / image_path
@@ -279,7 +300,9 @@ def _load_map_server(path: Path) -> OccupancyGrid:
     return OccupancyGrid(np.flipud(data), resolution, origin)
 
 
-def save_map(grid: OccupancyGrid, yaml_path, *, occupied_thresh: float = 0.65, free_thresh: float = 0.196) -> Path:
+def save_map(
+    grid: OccupancyGrid, yaml_path, *, occupied_thresh: float = 0.65, free_thresh: float = 0.196
+) -> Path:
     """Write ``grid`` as map_server YAML + binary PGM (P5), like ``map_saver``.
 
     Occupied cells (``>= occupied_thresh``) become 0, free cells (``<= free_thresh``)
@@ -315,5 +338,7 @@ def load_maze() -> OccupancyGrid:
 
     path = DATA_DIR / "maze.yaml"
     if not path.is_file():
-        raise MapFormatError(f"the bundled maze {str(path)!r} is missing; run `robolab data` to make it")
+        raise MapFormatError(
+            f"the bundled maze {str(path)!r} is missing; run `robolab data` to make it"
+        )
     return load_map(path)

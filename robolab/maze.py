@@ -15,6 +15,8 @@ import numpy as np
 import yaml
 from PIL import Image
 
+from robolab.validation import check_rng
+
 __all__ = ["generate_maze", "write_maze", "MAZE_SEED", "MAZE_RESOLUTION"]
 
 #: Seed of the bundled maze; changing it changes ``data/maze.png``.
@@ -84,8 +86,7 @@ def generate_maze(n_cells_x: int, n_cells_y: int, cell_px: int, wall_px: int, rn
     wall = _check_int("wall_px", wall_px, 1)
     if pitch <= wall:
         raise ValueError(f"cell_px must be larger than wall_px ({wall}), got {pitch}")
-    if not isinstance(rng, np.random.Generator):
-        raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    check_rng(rng)
 
     # open_east[r, c]: passage between maze cells (r, c) and (r, c + 1);
     # open_south[r, c]: between (r, c) and (r + 1, c).

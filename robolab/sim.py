@@ -38,7 +38,7 @@ from tqdm.auto import tqdm
 from robolab.geometry import compose, relative, wrap_angle
 from robolab.maps import OccupancyGrid, save_map
 from robolab.raycast import cast_rays
-from robolab.validation import as_array, as_poses, check_positive
+from robolab.validation import as_array, as_poses, check_positive, check_rng
 
 __all__ = [
     "LaserModel",
@@ -621,8 +621,7 @@ def simulate(
     """
     if not isinstance(grid, OccupancyGrid):
         raise TypeError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
-    if not isinstance(rng, np.random.Generator):
-        raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
+    check_rng(rng)
     route = as_array("route", route, ndim=2, finite=True)
     if route.shape[1] != 2 or len(route) < 1:
         raise ValueError(f"route must have shape (W, 2), got {route.shape}")

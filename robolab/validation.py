@@ -11,11 +11,24 @@ from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["as_array", "as_poses", "check_positive", "check_probability_vector"]
+__all__ = [
+    "as_array",
+    "as_poses",
+    "check_count",
+    "check_finite",
+    "check_positive",
+    "check_probability_vector",
+    "check_rng",
+]
 
 
 def _shape_text(shape: Sequence[int | None]) -> str:
-    return "(" + ", ".join("N" if s is None else str(s) for s in shape) + ("," if len(shape) == 1 else "") + ")"
+    return (
+        "("
+        + ", ".join("N" if s is None else str(s) for s in shape)
+        + ("," if len(shape) == 1 else "")
+        + ")"
+    )
 
 
 def as_array(
@@ -67,9 +80,14 @@ def as_array(
     if ndim is not None:
         allowed = (ndim,) if isinstance(ndim, int) else tuple(ndim)
         if arr.ndim not in allowed:
-            raise ValueError(f"{name} must have {' or '.join(map(str, allowed))} dimension(s), got shape {arr.shape}")
+            raise ValueError(
+                f"{name} must have {' or '.join(map(str, allowed))} dimension(s), "
+                f"got shape {arr.shape}"
+            )
     if shape is not None:
-        if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+        if arr.ndim != len(shape) or any(
+            s is not None and s != a for s, a in zip(shape, arr.shape, strict=True)
+        ):
             raise ValueError(f"{name} must have shape {_shape_text(shape)}, got {arr.shape}")
     if finite and not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite (no NaN or inf)")
@@ -79,12 +97,15 @@ def as_array(
 
 
 def as_poses(name: str, value) -> np.ndarray:
-    """Return ``value`` as a float array of poses ``(N, 3)``; a single pose ``(3,)`` becomes ``(1, 3)``."""
+    """Return ``value`` as float poses ``(N, 3)``; a single pose ``(3,)`` becomes ``(1, 3)``."""
     arr = as_array(name, value, ndim=(1, 2), finite=True)
     if arr.ndim == 1:
         arr = arr[None, :]
     if arr.shape[-1] != 3:
-        raise ValueError(f"{name} must be a pose (x, y, theta) or an (N, 3) array of poses, got shape {arr.shape}")
+        raise ValueError(
+            f"{name} must be a pose (x, y, theta) or an (N, 3) array of poses, "
+            f"got shape {arr.shape}"
+        )
     return arr
 
 
@@ -95,8 +116,40 @@ def check_positive(name: str, value, *, allow_zero: bool = False) -> float:
     except (TypeError, ValueError) as exc:
         raise TypeError(f"{name} must be a number, got {type(value).__name__}") from exc
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ValueError(f"{name} must be {'>= 0' if allow_zero else '> 0'} and finite, got {value!r}")
+        raise ValueError(
+            f"{name} must be {'>= 0' if allow_zero else '> 0'} and finite, got {value!r}"
+        )
     return v
+
+
+def check_finite(name: str, value) -> float:
+    """Return ``value`` as a float: TypeError unless numeric, ValueError unless finite."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from exc
+    if not np.isfinite(v):
+        raise ValueError(f"{name} must be finite, got {value!r}")
+    return v
+
+
+def check_count(name: str, value, *, minimum: int = 1) -> int:
+    """Return ``value`` as an int (not a bool) that is at least ``minimum``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
+    if value < minimum:
+        raise ValueError(f"{name} must be >= {minimum}, got {value}")
+    return int(value)
+
+
+def check_rng(rng) -> np.random.Generator:
+    """Return ``rng`` if it is a numpy Generator; otherwise TypeError saying how to make one."""
+    if not isinstance(rng, np.random.Generator):
+        raise TypeError(
+            "rng must be a numpy.random.Generator (np.random.default_rng(seed)), "
+            f"got {type(rng).__name__}"
+        )
+    return rng
 
 
 def check_probability_vector(name: str, value, *, axis: int = -1, atol: float = 1e-9) -> np.ndarray:

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from robolab.geometry import wrap_angle
-from robolab.validation import as_array, check_positive
+from robolab.validation import as_array, check_finite, check_positive, check_rng
 
 __all__ = ["LANDMARKS", "WORLD_SIZE", "cWorld", "cRobot", "wrap_position", "landmark_ranges"]
 
@@ -190,9 +190,7 @@ class cRobot:  # noqa: N801 - the seed's name, used throughout the lab
     def __init__(self, rng: np.random.Generator | None = None, size: float = WORLD_SIZE):
         if rng is None:
             rng = np.random.default_rng()
-        if not isinstance(rng, np.random.Generator):
-            raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
-        self.rng = rng
+        self.rng = check_rng(rng)
         self.size = check_positive("size", size)
         self.x = float(rng.uniform(0.0, self.size))
         self.y = float(rng.uniform(0.0, self.size))
@@ -296,8 +294,8 @@ class cRobot:  # noqa: N801 - the seed's name, used throughout the lab
         cRobot
             ``self``.
         """
-        u_rot = _finite_float("u_rotation", u_rotation)
-        u_trans = _finite_float("u_translation", u_translation)
+        u_rot = check_finite("u_rotation", u_rotation)
+        u_trans = check_finite("u_translation", u_translation)
         theta = wrap_angle(self.theta + u_rot + self.rng.normal(0.0, self.turn_noise))
         d = u_trans + self.rng.normal(0.0, self.forward_noise)
         self.theta = theta
@@ -391,14 +389,6 @@ class cRobot:  # noqa: N801 - the seed's name, used throughout the lab
         return ax
 
 
-def _finite_float(name: str, value) -> float:
-    try:
-        f = float(value)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from exc
-    if not np.isfinite(f):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return f
 
 
 def _landmarks_of(world) -> np.ndarray:

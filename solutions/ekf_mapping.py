@@ -29,7 +29,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 from robolab.geometry import wrap_angle
 from robolab.maps import OccupancyGrid
 from robolab.raycast import cast_rays
-from robolab.validation import as_array, check_positive
+from robolab.validation import as_array, check_finite, check_positive
 
 __all__ = [
     "transition_model",
@@ -92,8 +92,8 @@ def transition_model(state, speed, rotation_speed, dt):
         finite, ``dt`` is not > 0.
     """
     s = _state(state, allow_many=True)
-    v = _finite("speed", speed)
-    w = _finite("rotation_speed", rotation_speed)
+    v = check_finite("speed", speed)
+    w = check_finite("rotation_speed", rotation_speed)
     dt = check_positive("dt", dt)
     theta = s[..., 2]
     out = np.empty_like(s)
@@ -131,8 +131,8 @@ def state_jacobian(state, speed, rotation_speed, dt):
     numpy.ndarray, shape (3, 3)
     """
     s = _state(state)
-    v = _finite("speed", speed)
-    _finite("rotation_speed", rotation_speed)
+    v = check_finite("speed", speed)
+    check_finite("rotation_speed", rotation_speed)
     dt = check_positive("dt", dt)
     g = np.eye(3)
     g[0, 2] = -v * np.sin(s[2]) * dt
@@ -404,8 +404,8 @@ def ekf_mapping_step(ekf, grid, speed, rotation_speed, scan, dt, max_range=MAX_R
         raise ValueError(f"scan must have {b} ranges (the size of R), got {z.shape[0]}")
     zmax = check_positive("max_range", max_range)
     z = _scan(z, zmax)
-    v = _finite("speed", speed)
-    w = _finite("rotation_speed", rotation_speed)
+    v = check_finite("speed", speed)
+    w = check_finite("rotation_speed", rotation_speed)
     dt = check_positive("dt", dt)
     m = as_array("grid", grid, ndim=2, finite=True)
 
@@ -437,14 +437,6 @@ def ekf_mapping_step(ekf, grid, speed, rotation_speed, scan, dt, max_range=MAX_R
 
 
 # -- helpers -------------------------------------------------------------------------------
-def _finite(name, value) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from exc
-    if not np.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return v
 
 
 def _state(state, allow_many=False) -> np.ndarray:

@@ -44,7 +44,7 @@ import numpy as np
 
 from robolab.fiducials import DT, as_robot
 from robolab.geometry import wrap_angle
-from robolab.validation import as_array, check_positive
+from robolab.validation import as_array, check_count, check_positive, check_rng
 
 __all__ = [
     "init_particles",
@@ -101,8 +101,8 @@ def init_particles(n_particles, n_landmarks, x0, init="prior"):
         ``poses`` (M, 3), ``means`` (M, K, 2), ``covs`` (M, K, 2, 2),
         ``seen`` (M, K) bool, ``weights`` (M,); every array is its own copy.
     """
-    m = _count("n_particles", n_particles)
-    k = _count("n_landmarks", n_landmarks)
+    m = check_count("n_particles", n_particles)
+    k = check_count("n_landmarks", n_landmarks)
     pose = as_array("x0", x0, shape=(3,), finite=True).copy()
     pose[2] = wrap_angle(pose[2])
     if init not in INIT_MODES:
@@ -152,7 +152,7 @@ def predict_poses(poses, command, Q, rng, dt=DT):
     p = _poses(poses)
     u = as_array("command", command, shape=(2,), finite=True)
     q = _covariance("Q", Q, 3, definite=False)
-    _check_rng(rng)
+    check_rng(rng)
     dt = check_positive("dt", dt)
     return _sample_motion(p, u, _sqrt_psd(q), rng, dt)
 
@@ -389,7 +389,7 @@ def fastslam(
         particle set; with ``history=True`` also ``particles`` (T+1, M, 3).
     """
     robot = as_robot(robot_or_run)
-    _check_rng(rng)
+    check_rng(rng)
     q = robot.Q if Q is None else Q
     qt = robot.Qt if Qt is None else Qt
     state = init_particles(n_particles, robot.n_fiducials, robot.x0, init)
@@ -424,12 +424,6 @@ def fastslam(
 # -- private helpers -------------------------------------------------------------
 
 
-def _count(name, value) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
-    if value < 1:
-        raise ValueError(f"{name} must be >= 1, got {value}")
-    return int(value)
 
 
 def _poses(poses) -> np.ndarray:
@@ -446,12 +440,6 @@ def _last_dim(name, value, n) -> np.ndarray:
     return arr
 
 
-def _check_rng(rng) -> None:
-    if not isinstance(rng, np.random.Generator):
-        raise TypeError(
-            "rng must be a numpy.random.Generator (np.random.default_rng(seed)), "
-            f"got {type(rng).__name__}"
-        )
 
 
 def _covariance(name, value, n, *, definite) -> np.ndarray:

@@ -13,7 +13,14 @@ from __future__ import annotations
 import numpy as np
 
 from robolab.geometry import wrap_angle
-from robolab.validation import as_array, as_poses, check_positive
+from robolab.validation import (
+    as_array,
+    as_poses,
+    check_count,
+    check_finite,
+    check_positive,
+    check_rng,
+)
 from robolab.world import wrap_position
 
 __all__ = ["move_particles", "measurement_probability", "low_variance_resample", "particle_filter"]
@@ -66,12 +73,12 @@ def move_particles(
     p = as_poses("particles", particles)
     if np.ndim(particles) != 2:
         raise ValueError(f"particles must have shape (N, 3), got {np.shape(particles)}")
-    u_rot = _finite("u_rotation", u_rotation)
-    u_trans = _finite("u_translation", u_translation)
+    u_rot = check_finite("u_rotation", u_rotation)
+    u_trans = check_finite("u_translation", u_translation)
     sigma_f = check_positive("forward_noise", forward_noise, allow_zero=True)
     sigma_t = check_positive("turn_noise", turn_noise, allow_zero=True)
     size = check_positive("world_size", world_size)
-    _check_rng(rng)
+    check_rng(rng)
     n = p.shape[0]
     theta = wrap_angle(
         p[:, 2] + rng.normal(u_rot, sigma_t, size=n)
@@ -191,7 +198,7 @@ def low_variance_resample(particles, weights, rng):
         raise ValueError(
             "weights are all zero: cannot resample (every particle has zero likelihood)"
         )
-    _check_rng(rng)
+    check_rng(rng)
     r = rng.uniform(0.0, 1.0 / n)
     c = np.cumsum(w / total)
     pointers = r + np.arange(n) / n
@@ -264,10 +271,10 @@ def particle_filter(
     if u.shape[1] != 2:
         raise ValueError(f"controls must have shape (T, 2), got {u.shape}")
     z = as_array("measurements", measurements, shape=(u.shape[0], lm.shape[0]), finite=True)
-    n = _count("n_particles", n_particles)
+    n = check_count("n_particles", n_particles)
     sigma_f, sigma_t, sigma_s = _noise_triple(noise)
     start = as_array("initial_pose", initial_pose, shape=(3,), finite=True)
-    _check_rng(rng)
+    check_rng(rng)
 
     steps = u.shape[0]
     particles = np.tile(start, (n, 1))
@@ -299,27 +306,10 @@ def particle_filter(
     return path
 
 
-def _finite(name, value) -> float:
-    try:
-        f = float(value)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from exc
-    if not np.isfinite(f):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return f
 
 
-def _check_rng(rng) -> None:
-    if not isinstance(rng, np.random.Generator):
-        raise TypeError(f"rng must be a numpy.random.Generator, got {type(rng).__name__}")
 
 
-def _count(name, value) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
-    if value < 1:
-        raise ValueError(f"{name} must be >= 1, got {value}")
-    return int(value)
 
 
 def _noise_triple(noise):

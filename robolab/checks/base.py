@@ -17,7 +17,7 @@ def passed(name: str, detail: str = "") -> None:
 
 
 def check(func):
-    """Decorate a visible check: NotImplementedError and exceptions become a friendly CheckFailed."""
+    """Decorate a visible check: NotImplementedError and other errors become a CheckFailed."""
 
     @functools.wraps(func)
     def wrapper(student_function, *args, **kwargs):
@@ -25,7 +25,9 @@ def check(func):
         try:
             result = func(student_function, *args, **kwargs)
         except NotImplementedError:
-            raise CheckFailed(f"{name} is not implemented yet: replace `raise NotImplementedError` with your code") from None
+            raise CheckFailed(
+                f"{name} is not implemented yet: replace `raise NotImplementedError` with your code"
+            ) from None
         except CheckFailed:
             raise
         except Exception as exc:  # the student's code raised: show it plainly
@@ -37,7 +39,7 @@ def check(func):
 
 
 def expect_close(what: str, got, expected, *, atol: float = 1e-8, rtol: float = 1e-6) -> None:
-    """Raise CheckFailed unless ``got`` equals ``expected`` within tolerance (compared as float arrays)."""
+    """Raise CheckFailed unless ``got`` equals ``expected`` within tolerance, as float arrays."""
     try:
         g = np.asarray(got, dtype=float)
     except (TypeError, ValueError):
@@ -46,7 +48,10 @@ def expect_close(what: str, got, expected, *, atol: float = 1e-8, rtol: float = 
     if g.shape != e.shape:
         raise CheckFailed(f"{what}: expected shape {e.shape}, got {g.shape}")
     if not np.allclose(g, e, atol=atol, rtol=rtol, equal_nan=False):
-        raise CheckFailed(f"{what}: expected {np.array2string(e, precision=4)}, got {np.array2string(g, precision=4)}")
+        raise CheckFailed(
+            f"{what}: expected {np.array2string(e, precision=4)}, "
+            f"got {np.array2string(g, precision=4)}"
+        )
 
 
 def expect_shape(what: str, got, shape) -> np.ndarray:
