@@ -56,7 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from robolab.geometry import wrap_angle
-from robolab.validation import as_array, check_positive
+from robolab.validation import as_array, check_covariance, check_positive
 
 __all__ = [
     "FIDUCIALS",
@@ -76,6 +76,7 @@ __all__ = [
     "as_robot",
     "write_run",
     "load_run",
+    "sqrt_psd",
 ]
 
 #: The five fiducials of the lab, metres, one row per id.
@@ -166,19 +167,7 @@ def unicycle(pose, command, dt: float = DT) -> np.ndarray:
     )
 
 
-def _covariance(name: str, value, n: int, *, definite: bool) -> np.ndarray:
-    """Check a symmetric positive (semi-)definite ``n x n`` covariance."""
-    c = as_array(name, value, shape=(n, n), finite=True)
-    if not np.allclose(c, c.T, atol=1e-12, rtol=1e-9):
-        raise ValueError(f"{name} must be symmetric, got {c.tolist()}")
-    eig = np.linalg.eigvalsh(c)
-    if eig.min() < -1e-12 * max(1.0, eig.max()) or (definite and eig.min() <= 0):
-        kind = "positive definite" if definite else "positive semi-definite"
-        raise ValueError(f"{name} must be {kind}, got eigenvalues {eig.tolist()}")
-    return c
-
-
-def _sqrt_psd(c: np.ndarray) -> np.ndarray:
+def sqrt_psd(c: np.ndarray) -> np.ndarray:
     """A matrix ``L`` with ``L L^T = c`` for a symmetric PSD ``c`` (zero noise allowed)."""
     eig, vec = np.linalg.eigh(c)
     return vec * np.sqrt(np.clip(eig, 0.0, None))
@@ -322,8 +311,8 @@ class FiducialRobot:
         if isinstance(n_steps, bool) or not isinstance(n_steps, (int, np.integer)) or n_steps < 1:
             raise ValueError(f"n_steps must be a positive integer, got {n_steps!r}")
         self.dt = check_positive("dt", dt)
-        self.Q = _covariance("Q", Q_DEFAULT if Q is None else Q, 3, definite=False)
-        self.Qt = _covariance("Qt", QT_DEFAULT if Qt is None else Qt, 2, definite=False)
+        self.Q = check_covariance("Q", Q_DEFAULT if Q is None else Q, 3, definite=False)
+        self.Qt = check_covariance("Qt", QT_DEFAULT if Qt is None else Qt, 2, definite=False)
         self.fov = check_positive("fov", fov)
         if self.fov > 2.0 * np.pi + 1e-12:
             raise ValueError(f"fov must be in (0, 2 pi], got {fov!r}")
@@ -350,10 +339,10 @@ class FiducialRobot:
     def _simulate(self, rng: np.random.Generator) -> None:
         T = self.n_steps
         commands = route_command(np.arange(T) * self.dt)
-        process = rng.standard_normal((T, 3)) @ _sqrt_psd(self.Q).T
+        process = rng.standard_normal((T, 3)) @ sqrt_psd(self.Q).T
         poses = np.empty((T + 1, 3))
         poses[0] = self.x0
-        sensor = _sqrt_psd(self.Qt)
+        sensor = sqrt_psd(self.Qt)
         rows = []
         for t in range(T):  # the robot is one pose: a loop over time is the model
             nxt = unicycle(poses[t], commands[t], self.dt) + process[t]

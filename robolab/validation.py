@@ -15,6 +15,7 @@ __all__ = [
     "as_array",
     "as_poses",
     "check_count",
+    "check_covariance",
     "check_finite",
     "check_positive",
     "check_probability_vector",
@@ -120,6 +121,18 @@ def check_positive(name: str, value, *, allow_zero: bool = False) -> float:
             f"{name} must be {'>= 0' if allow_zero else '> 0'} and finite, got {value!r}"
         )
     return v
+
+
+def check_covariance(name: str, value, n: int, *, definite: bool = False) -> np.ndarray:
+    """Return ``value`` as an ``(n, n)`` symmetric positive semi-definite (or definite) matrix."""
+    c = as_array(name, value, shape=(n, n), finite=True)
+    if np.abs(c - c.T).max() > 1e-9 * max(1.0, np.abs(c).max()):
+        raise ValueError(f"{name} must be symmetric, got {c.tolist()}")
+    eig = np.linalg.eigvalsh(c)
+    if eig[0] < -1e-12 * max(1.0, eig[-1]) or (definite and eig[0] <= 0):
+        kind = "positive definite" if definite else "positive semi-definite"
+        raise ValueError(f"{name} must be {kind}, got eigenvalues {eig.tolist()}")
+    return c
 
 
 def check_finite(name: str, value) -> float:

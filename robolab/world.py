@@ -229,13 +229,7 @@ class cRobot:  # noqa: N801 - the seed's name, used throughout the lab
         """
         vals = {}
         for name, v in (("x", x), ("y", y), ("theta", theta)):
-            try:
-                f = float(v)
-            except (TypeError, ValueError) as exc:
-                raise TypeError(f"{name} must be a number, got {type(v).__name__}") from exc
-            if not np.isfinite(f):
-                raise ValueError(f"{name} must be finite, got {v!r}")
-            vals[name] = f
+            vals[name] = check_finite(name, v)
         for name in ("x", "y"):
             if not 0.0 <= vals[name] < self.size:
                 raise ValueError(f"{name} must be in [0, {self.size:g}), got {vals[name]!r}")

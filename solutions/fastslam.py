@@ -42,9 +42,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from robolab.fiducials import DT, as_robot
+from robolab.fiducials import DT, as_robot, sqrt_psd
 from robolab.geometry import wrap_angle
-from robolab.validation import as_array, check_count, check_positive, check_rng
+from robolab.validation import as_array, check_count, check_covariance, check_positive, check_rng
 
 __all__ = [
     "init_particles",
@@ -151,10 +151,10 @@ def predict_poses(poses, command, Q, rng, dt=DT):
     """
     p = _poses(poses)
     u = as_array("command", command, shape=(2,), finite=True)
-    q = _covariance("Q", Q, 3, definite=False)
+    q = check_covariance("Q", Q, 3, definite=False)
     check_rng(rng)
     dt = check_positive("dt", dt)
-    return _sample_motion(p, u, _sqrt_psd(q), rng, dt)
+    return _sample_motion(p, u, sqrt_psd(q), rng, dt)
 
 
 def h(landmark, pose):
@@ -263,7 +263,7 @@ def update_landmark(mean, cov, z, pose, Qt):
         raise ValueError(f"cov must have shape (..., 2, 2), got {sigma.shape}")
     zz = _last_dim("z", z, 2)
     p = _last_dim("pose", pose, 3)
-    qt = _covariance("Qt", Qt, 2, definite=True)
+    qt = check_covariance("Qt", Qt, 2, definite=True)
     return _ekf_update(mu, sigma, zz, p, qt)
 
 
@@ -315,7 +315,7 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
     s = _check_state(state)
     n_landmarks = s["means"].shape[1]
     obs = _observations(observations, n_landmarks)
-    qt = _covariance("Qt", Qt, 2, definite=True)
+    qt = check_covariance("Qt", Qt, 2, definite=True)
     poses = predict_poses(s["poses"], command, Q, rng, dt)  # checks command, Q, rng, dt
     means, covs, seen = s["means"].copy(), s["covs"].copy(), s["seen"].copy()
     log_w = np.log(s["weights"], out=np.full_like(s["weights"], -np.inf), where=s["weights"] > 0)
@@ -424,8 +424,6 @@ def fastslam(
 # -- private helpers -------------------------------------------------------------
 
 
-
-
 def _poses(poses) -> np.ndarray:
     p = as_array("poses", poses, ndim=2, finite=True)
     if p.shape[1] != 3:
@@ -438,25 +436,6 @@ def _last_dim(name, value, n) -> np.ndarray:
     if arr.ndim == 0 or arr.shape[-1] != n:
         raise ValueError(f"{name} must have shape (..., {n}), got {arr.shape}")
     return arr
-
-
-
-
-def _covariance(name, value, n, *, definite) -> np.ndarray:
-    c = as_array(name, value, shape=(n, n), finite=True)
-    if np.abs(c - c.T).max() > 1e-9 * max(1.0, np.abs(c).max()):
-        raise ValueError(f"{name} must be symmetric, got {c.tolist()}")
-    eig = np.linalg.eigvalsh(c)
-    if eig[0] < -1e-12 * max(1.0, eig[-1]) or (definite and eig[0] <= 0):
-        kind = "positive definite" if definite else "positive semi-definite"
-        raise ValueError(f"{name} must be {kind}, got eigenvalues {eig.tolist()}")
-    return c
-
-
-def _sqrt_psd(c: np.ndarray) -> np.ndarray:
-    """``L`` with ``L L^T = c`` for symmetric PSD ``c`` (by eigh: zero variances allowed)."""
-    eig, vec = np.linalg.eigh(c)
-    return vec * np.sqrt(np.clip(eig, 0.0, None))
 
 
 def _inv2(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
