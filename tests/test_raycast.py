@@ -335,7 +335,9 @@ def _cast_in_subprocess(code: str, timeout: float = 30.0) -> str:
     import subprocess
     import sys
 
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout)
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout
+    )
     assert done.returncode == 0, done.stderr
     return done.stdout
 
@@ -373,3 +375,66 @@ def test_integer_poses_and_axis_or_diagonal_beams_match_the_oracle(seed):
     ok[ok] &= ~g.occupied[start[ok, 0], start[ok, 1]]
     want = fine_step_oracle(g, poses[ok], angles[::2], 30.0, 1e-3)  # axis beams: no corner ties
     np.testing.assert_allclose(got[ok][:, ::2], want, atol=2e-3)
+
+
+# -- the quadrant jump fields -------------------------------------------------------------------
+@pytest.mark.parametrize("seed", range(3))
+def test_quadrant_field_matches_brute_force(seed):
+    from robolab.raycast import _OBSTACLE, _quadrant_field
+
+    rng = np.random.default_rng(seed)
+    occ = rng.random((23, 31)) < rng.uniform(0.01, 0.1)
+    cap = 7
+    code = _quadrant_field(occ, cap)
+    rr, cc = np.nonzero(occ)
+    for r in range(occ.shape[0]):
+        for c in range(occ.shape[1]):
+            if occ[r, c]:
+                assert code[r, c] == _OBSTACLE
+                continue
+            ahead = (rr >= r) & (cc >= c)
+            s = np.hypot(np.maximum(rr[ahead] - r - 1, 0), np.maximum(cc[ahead] - c - 1, 0))
+            s = min(s.min() if s.size else np.inf, cap)
+            assert code[r, c] == np.floor(4 * s + 1e-9), (r, c)  # quarter cells, rounded down
+
+
+def _exact_ray(occ, u0, v0, phi, limit):
+    """One ray, plain Amanatides-Woo in cells (the benchmark's baseline), for poses in the map."""
+    h, w = occ.shape
+    dx, dy = np.cos(phi), np.sin(phi)
+    c, r = int(np.floor(u0)), int(np.floor(v0))
+    sx, sy = (1 if dx >= 0 else -1), (1 if dy >= 0 else -1)
+    tx = ((c + (dx >= 0)) - u0) / dx if dx else np.inf
+    ty = ((r + (dy >= 0)) - v0) / dy if dy else np.inf
+    tdx, tdy = (abs(1 / dx) if dx else np.inf), (abs(1 / dy) if dy else np.inf)
+    t = 0.0
+    while t < limit:
+        if not (0 <= r < h and 0 <= c < w):
+            return limit
+        if occ[r, c]:
+            return t
+        if tx < ty:
+            t, c, tx = tx, c + sx, tx + tdx
+        else:
+            t, r, ty = ty, r + sy, ty + tdy
+    return limit
+
+
+def test_long_jumps_on_a_box_map_match_the_exact_traversal():
+    # Long rays through open space and along box sides: the quadrant fields' jumps
+    # (up to the cap) must never skip an obstacle cell. Poses inside the map.
+    rng = np.random.default_rng(11)
+    occ = np.zeros((300, 300), dtype=bool)
+    for r, c, hh, ww in zip(
+        *rng.integers(0, 300, (2, 60)), *rng.integers(2, 25, (2, 60)), strict=True
+    ):
+        occ[r : r + hh, c : c + ww] = True
+    g = OccupancyGrid(occ.astype(float), 1.0)
+    free = np.argwhere(~occ)[rng.integers(int((~occ).sum()), size=60)]
+    uv = free[:, ::-1] + rng.uniform(0, 1, (60, 2))
+    poses = np.column_stack([uv, rng.uniform(-np.pi, np.pi, 60)])
+    # Random beams plus exactly axis-parallel and diagonal ones.
+    angles = np.concatenate([rng.uniform(-np.pi, np.pi, 40), np.arange(8) * np.pi / 4])
+    got = cast_rays(g, poses, angles, 250.0)
+    want = np.array([[_exact_ray(occ, u, v, th + a, 250.0) for a in angles] for u, v, th in poses])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)

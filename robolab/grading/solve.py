@@ -47,20 +47,47 @@ class SolutionSource:
 
     @classmethod
     def read(cls, path: Path) -> SolutionSource:
+        """Parse a solution module.
+
+        A function imported from another solution module (``from solutions.landmark_pf
+        import low_variance_resample``: a lab reusing an earlier lab's exercise) is
+        inlined with the definitions and imports it needs, so a solved notebook never
+        imports ``solutions``, which students and the grading worker cannot see.
+        """
         text = path.read_text()
         lines = text.splitlines()
         tree = ast.parse(text, filename=str(path))
         imports, definitions, uses = [], {}, {}
+        borrowed: list[tuple[SolutionSource, str]] = []
         for order, node in enumerate(tree.body):
             start = min([node.lineno] + [d.lineno for d in getattr(node, "decorator_list", [])]) - 1
             while start > 0 and lines[start - 1].lstrip().startswith("#"):
                 start -= 1  # keep the comment that documents a constant or helper
             source = "\n".join(lines[start : node.end_lineno])
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("solutions."):
+                other = cls.read(path.parent / (node.module.split(".", 1)[1] + ".py"))
+                for alias in node.names:
+                    if alias.asname not in (None, alias.name):
+                        raise SolveError(
+                            f"{path}: import {alias.name} from {node.module} without 'as' "
+                            "(its source is inlined under its own name)"
+                        )
+                    borrowed.append((other, alias.name))
+                continue
             if isinstance(node, (ast.Import, ast.ImportFrom)):
                 imports.append(ast.get_source_segment(text, node) or source)
             for name in _defined_names(node):
                 definitions[name] = (order, source)
                 uses[name] = frozenset(n.id for n in ast.walk(node) if isinstance(n, ast.Name))
+        for other, name in borrowed:
+            if name not in other.definitions:
+                raise SolveError(f"{path}: {other.path} defines no {name!r}")
+            imports += [i for i in other.imports if i not in imports]
+            for dep in [*other.dependencies([name], exclude=set()), name]:
+                if dep not in definitions:  # borrowed code goes first, in its module's order
+                    order, source = other.definitions[dep]
+                    definitions[dep] = (order - len(other.definitions) - 1, source)
+                    uses[dep] = other.uses[dep]
         return cls(path, tuple(imports), definitions, uses)
 
     def functions(self) -> list[str]:

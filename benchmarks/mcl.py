@@ -1,0 +1,127 @@
+"""Benchmark of lab 05 (MCL): one filter step, and the whole localization bag.
+
+Pinned to one core. Prints a table:
+
+* ``mcl_step`` with the likelihood field, 5000 particles x 60 beams (target >= 50 Hz);
+* the same likelihood evaluation as a per-particle Python loop (the baseline,
+  measured on a subset of particles in the same run and scaled to 5000);
+* the whole ``data/localization.bag`` (every scan) with 2000 particles, as a
+  multiple of real time (target >= 10x).
+
+Run: ``.venv/bin/python benchmarks/mcl.py``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from robolab.geometry import compose  # noqa: E402
+from robolab.plotting import mcl as mclplot  # noqa: E402
+from solutions import mcl  # noqa: E402
+
+N_STEP, N_BAG, BEAMS, SUBSET = 5000, 2000, 60, 100
+PARAMS = {"alphas": (0.1, 0.1, 0.1, 0.1), "z_hit": 0.9, "z_rand": 0.1, "max_beams": BEAMS}
+
+
+def _best_of(fn, repeat: int) -> float:
+    best = math.inf
+    for _ in range(repeat):
+        t = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def _loop_model(scan, particles, field, laser_pose):
+    """Baseline: Table 6.3 particle by particle, beam by beam, in Python."""
+    r, a = np.asarray(scan["ranges"]), np.asarray(scan["angles"])
+    step = max(1, (r.size - 1) // (BEAMS - 1))
+    keep = np.zeros(r.size, bool)
+    keep[::step] = True
+    keep &= np.isfinite(r) & (r >= scan["range_min"]) & (r < scan["range_max"])
+    dist, res, (ox, oy, _) = field["distance"], field["resolution"], field["origin"]
+    sigma, dmax, zmax = field["sigma_hit"], field["max_dist"], scan["range_max"]
+    out = np.zeros(len(particles))
+    for m, pose in enumerate(particles):
+        lx, ly, lt = compose(pose, laser_pose)
+        total = 0.0
+        for rk, ak in zip(r[keep], a[keep], strict=True):
+            col = math.floor((lx + rk * math.cos(lt + ak) - ox) / res)
+            row = math.floor((ly + rk * math.sin(lt + ak) - oy) / res)
+            d = dist[row, col] if 0 <= row < dist.shape[0] and 0 <= col < dist.shape[1] else dmax
+            total += math.log(
+                0.9 * math.exp(-0.5 * (d / sigma) ** 2) / (math.sqrt(2 * math.pi) * sigma)
+                + 0.1 / zmax
+            )
+        out[m] = total
+    return out
+
+
+def main() -> None:
+    if hasattr(os, "sched_setaffinity"):
+        os.sched_setaffinity(0, {0})
+    data = mclplot.load_localization()
+    field = mcl.likelihood_field(data.grid, 0.1, 2.0)
+    rng = np.random.default_rng(0)
+    particles = mcl.init_uniform(data.grid, N_STEP, rng)
+    weights = np.full(N_STEP, 1.0 / N_STEP)
+    scan = data.scan(100)
+    prm = {**PARAMS, "laser_pose": data.laser_pose, "force_update": True}
+
+    rows = []
+    t_model = _best_of(lambda: mcl.likelihood_field_model(scan, particles, field, prm), 20)
+    t_step = _best_of(
+        lambda: mcl.mcl_step(
+            particles, weights, data.odom[99], data.odom[100], scan, field, prm, rng
+        ),
+        20,
+    )
+    t_loop = (
+        _best_of(lambda: _loop_model(scan, particles[:SUBSET], field, data.laser_pose), 3)
+        * N_STEP
+        / SUBSET
+    )
+    rows.append(
+        (f"likelihood, Python loop (baseline, {SUBSET} particles scaled)", N_STEP, t_loop, 1.0)
+    )
+    rows.append(("likelihood_field_model (vectorized)", N_STEP, t_model, t_loop / t_model))
+    rows.append(("mcl_step: predict + weight + resample", N_STEP, t_step, t_loop / t_step))
+
+    start = mcl.init_gaussian(
+        data.truth[0], np.diag([0.01, 0.01, 0.01]), N_BAG, np.random.default_rng(1)
+    )
+    t = time.perf_counter()
+    run = mclplot.run_mcl(
+        data, mcl.mcl_step, start, field, PARAMS, np.random.default_rng(2), every=1, progress=False
+    )
+    t_bag = time.perf_counter() - t
+    speedup = data.t[-1] / t_bag
+
+    print(
+        f"MCL benchmark (one core; {BEAMS} beams; likelihood field 0.05 m, {data.grid.shape[1]} x {data.grid.shape[0]} cells)"
+    )
+    print(f"{'what':58s} {'particles':>9s} {'time [ms]':>10s} {'rate [Hz]':>10s} {'vs loop':>8s}")
+    for name, n, sec, gain in rows:
+        print(f"{name:58s} {n:9d} {sec * 1e3:10.2f} {1 / sec:10.1f} {gain:7.0f}x")
+    print(
+        f"{'whole localization bag, every scan (' + str(len(data)) + ' steps)':58s} {N_BAG:9d} "
+        f"{t_bag * 1e3:10.0f} {'':>10s} {'':>8s}"
+    )
+    print(
+        f"  bag duration {data.t[-1]:.1f} s -> {speedup:.1f}x faster than real time "
+        f"(target >= 10x); tracking error after 5 s <= "
+        f"{run['position_error'][run['t'] >= 5].max():.3f} m"
+    )
+    print(f"  mcl_step at {N_STEP} particles: {1 / t_step:.0f} Hz (target >= 50 Hz)")
+
+
+if __name__ == "__main__":
+    main()

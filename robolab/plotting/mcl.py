@@ -1,0 +1,560 @@
+"""Data loading, filter runners and figures for lab 05, Monte Carlo localization.
+
+The notebook's exercise functions (``init_uniform``, ``mcl_step``, ...) are
+passed in as arguments: this module drives them over the bundled
+``data/localization.bag`` and draws what they produced, so the notebook holds
+no hidden state and no long helper code.
+
+* :func:`load_localization` -- map, scans, odometry and ground truth at the scan stamps;
+* :func:`run_mcl` -- MCL over the bag with a step function (AMCL's update
+  thresholds and resample interval handled as AMCL's node does);
+* :func:`run_augmented` -- augmented MCL (recovery), optionally with a kidnapping;
+* :func:`run_kld` -- MCL with KLD-sampling (adaptive particle count);
+* :func:`estimate_pose` -- the best hypothesis (heaviest cluster), as AMCL publishes;
+* figures: :func:`plot_likelihood_field`, :func:`plot_snapshots`,
+  :func:`plot_errors`, :func:`plot_particle_count`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.axes import Axes
+from scipy import ndimage
+from tqdm import tqdm
+
+from robolab.geometry import angle_diff, compose, relative, wrap_angle
+from robolab.maps import OccupancyGrid, load_map
+from robolab.plotting.core import new_axes, plot_map
+from robolab.validation import as_array, as_poses, check_positive
+
+__all__ = [
+    "SNAPSHOT_TIMES",
+    "LocalizationData",
+    "load_localization",
+    "estimate_pose",
+    "pose_errors",
+    "run_mcl",
+    "run_augmented",
+    "kld_resample",
+    "run_kld",
+    "plot_likelihood_field",
+    "plot_snapshots",
+    "plot_errors",
+    "plot_particle_count",
+]
+
+#: The seed's snapshot times (seed 004, figures 4 and 5), seconds since the first scan.
+SNAPSHOT_TIMES = (5.0, 10.0, 14.0, 20.0, 30.0, 42.0, 60.0, 75.0)
+#: Cluster size of :func:`estimate_pose`, metres.
+CLUSTER_BIN = 0.5
+
+
+@dataclass(frozen=True, eq=False)
+class LocalizationData:
+    """The localization bag at the scan stamps, as arrays.
+
+    Attributes
+    ----------
+    grid : OccupancyGrid
+        ``data/office.yaml``.
+    t : ndarray (T,)
+        Scan stamps, seconds since the first scan.
+    ranges : ndarray (T, B)
+        Raw ranges (inf, NaN and range_max kept).
+    angles : ndarray (B,)
+        Beam angles in the laser frame.
+    range_min, range_max : float
+    odom : ndarray (T, 3)
+        Odometry ``odom -> base_link`` interpolated at each scan stamp.
+    truth : ndarray (T, 3)
+        Ground truth ``map -> base_link`` at each scan stamp.
+    laser_pose : ndarray (3,)
+        ``base_link -> base_laser_link``.
+    """
+
+    grid: OccupancyGrid
+    t: np.ndarray
+    ranges: np.ndarray
+    angles: np.ndarray
+    range_min: float
+    range_max: float
+    odom: np.ndarray
+    truth: np.ndarray
+    laser_pose: np.ndarray
+
+    def __len__(self) -> int:
+        return self.t.size
+
+    def scan(self, i: int) -> dict:
+        """Scan ``i`` as the plain dict the exercise functions take."""
+        return {
+            "ranges": self.ranges[i],
+            "angles": self.angles,
+            "range_min": self.range_min,
+            "range_max": self.range_max,
+        }
+
+    def index_at(self, t: float) -> int:
+        """Index of the last scan at or before ``t`` seconds."""
+        return int(np.clip(np.searchsorted(self.t, t + 1e-9, side="right") - 1, 0, len(self) - 1))
+
+
+def load_localization(bag_path=None, map_path=None) -> LocalizationData:
+    """Read ``data/localization.bag`` and ``data/office.yaml`` (or the given files).
+
+    Odometry is interpolated at the scan stamps (``PoseTrack.at``); the laser
+    mount comes from ``/tf`` (``laser_pose_in_base``).
+    """
+    from robolab import DATA_DIR
+    from robolab.bag import BagReader, laser_pose_in_base
+
+    bag_path = Path(bag_path) if bag_path is not None else DATA_DIR / "localization.bag"
+    map_path = Path(map_path) if map_path is not None else DATA_DIR / "office.yaml"
+    grid = load_map(map_path)
+    with BagReader(bag_path) as bag:
+        scans = bag.scans("/base_scan")
+        odom = bag.odometry("/odom")
+        truth = bag.odometry("/ground_truth")
+        laser = laser_pose_in_base(bag.tf(), scans.frame_id)
+    lo = max(odom.stamps.min(), truth.stamps.min())
+    hi = min(odom.stamps.max(), truth.stamps.max())
+    keep = (scans.stamps >= lo) & (scans.stamps <= hi)
+    stamps = scans.stamps[keep]
+    return LocalizationData(
+        grid=grid,
+        t=stamps - stamps[0],
+        ranges=np.asarray(scans.ranges[keep], dtype=float),
+        angles=np.asarray(scans.angles, dtype=float),
+        range_min=float(scans.range_min),
+        range_max=float(scans.range_max),
+        odom=odom.at(stamps),
+        truth=truth.at(stamps),
+        laser_pose=np.asarray(laser, dtype=float),
+    )
+
+
+# ----------------------------------------------------------------------------------------------
+# estimates and errors
+# ----------------------------------------------------------------------------------------------
+def estimate_pose(particles, weights=None, bin_size: float = CLUSTER_BIN) -> np.ndarray:
+    """The best hypothesis: weighted mean of the heaviest cluster of particles.
+
+    Particles are binned on a ``bin_size`` grid in (x, y); the bin whose 3 x 3
+    neighbourhood holds the most weight is the best hypothesis, and the
+    estimate is the weighted mean position (circular mean heading) of the
+    particles in that neighbourhood. A plain weighted mean would land between
+    the modes of a multimodal belief (four identical offices); AMCL publishes
+    the mean of its heaviest cluster for the same reason.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,)
+    """
+    p = as_poses("particles", particles)
+    w = (
+        np.full(len(p), 1.0 / len(p))
+        if weights is None
+        else as_array("weights", weights, shape=(len(p),), finite=True, nonnegative=True)
+    )
+    size = check_positive("bin_size", bin_size)
+    ij = np.floor(p[:, :2] / size).astype(np.int64)
+    ij -= ij.min(axis=0)
+    shape = tuple(ij.max(axis=0) + 1)
+    hist = np.zeros(shape)
+    np.add.at(hist, (ij[:, 0], ij[:, 1]), w)
+    score = ndimage.uniform_filter(hist, size=3, mode="constant")
+    best = np.array(np.unravel_index(np.argmax(score), shape))
+    near = np.all(np.abs(ij - best) <= 1, axis=1)
+    wn = w[near] if w[near].sum() > 0 else np.ones(near.sum())
+    xy = np.average(p[near, :2], axis=0, weights=wn)
+    th = np.arctan2(
+        np.average(np.sin(p[near, 2]), weights=wn), np.average(np.cos(p[near, 2]), weights=wn)
+    )
+    return np.array([xy[0], xy[1], wrap_angle(th)])
+
+
+def pose_errors(estimates, truth) -> tuple[np.ndarray, np.ndarray]:
+    """Position error (m) and absolute heading error (rad) of ``(T, 3)`` estimates against ``(T, 3)`` truth."""
+    e = as_poses("estimates", estimates)
+    g = as_poses("truth", truth)
+    if e.shape != g.shape:
+        raise ValueError(
+            f"estimates and truth must have the same shape, got {e.shape} and {g.shape}"
+        )
+    return np.hypot(*(e[:, :2] - g[:, :2]).T), np.abs(angle_diff(e[:, 2], g[:, 2]))
+
+
+# ----------------------------------------------------------------------------------------------
+# runners
+# ----------------------------------------------------------------------------------------------
+def _snapshot_indices(data: LocalizationData, times: Sequence[float]) -> dict[int, float]:
+    return {data.index_at(t): float(t) for t in times if t <= data.t[-1] + 1e-9}
+
+
+def run_mcl(
+    data: LocalizationData,
+    mcl_step: Callable,
+    particles,
+    field,
+    params: dict,
+    rng: np.random.Generator,
+    *,
+    every: int = 1,
+    t_start: float = 0.0,
+    t_end: float | None = None,
+    snapshot_times: Sequence[float] = SNAPSHOT_TIMES,
+    progress: bool = True,
+    desc: str = "MCL",
+) -> dict:
+    """Run ``mcl_step`` over the bag, as AMCL's node drives its filter.
+
+    The run starts at the scan at ``t_start`` (seconds). Its first scan always
+    updates (``force_update``); after that the step is
+    called on every ``every``-th scan with ``odom_prev`` = the odometry of the
+    last *update*, so motions below AMCL's thresholds accumulate; the number of
+    updates so far goes in as ``params["update_count"]``.
+
+    Returns
+    -------
+    dict
+        ``t`` (T,), ``estimate`` (T, 3) (:func:`estimate_pose` after each
+        processed scan), ``truth`` (T, 3), ``position_error`` and
+        ``heading_error`` (T,), ``snapshots``: {time: (particles, weights)},
+        ``particles``, ``weights`` at the end, ``updates`` (int).
+    """
+    p = as_poses("particles", particles)
+    w = np.full(len(p), 1.0 / len(p))
+    end = len(data) if t_end is None else data.index_at(t_end) + 1
+    idx = np.arange(data.index_at(t_start), end, int(every))
+    snaps = _snapshot_indices(data, snapshot_times)
+    odom_prev = data.odom[idx[0]]
+    updates = 0
+    est, snapshots = [], {}
+    for k, i in enumerate(tqdm(idx, desc=desc, unit="scan", disable=not progress, leave=False)):
+        prm = {
+            **params,
+            "laser_pose": data.laser_pose,
+            "update_count": updates,
+            "force_update": k == 0,
+        }
+        p, w, updated = mcl_step(p, w, odom_prev, data.odom[i], data.scan(i), field, prm, rng)
+        p, w = np.asarray(p, dtype=float), np.asarray(w, dtype=float)
+        if updated:
+            odom_prev = data.odom[i]
+            updates += 1
+        est.append(estimate_pose(p, w))
+        for j in [j for j in snaps if j <= i and snaps[j] not in snapshots]:
+            snapshots[snaps[j]] = (p.copy(), w.copy())
+    est = np.array(est)
+    pos, head = pose_errors(est, data.truth[idx])
+    return {
+        "t": data.t[idx],
+        "estimate": est,
+        "truth": data.truth[idx],
+        "position_error": pos,
+        "heading_error": head,
+        "snapshots": snapshots,
+        "particles": p,
+        "weights": w,
+        "updates": updates,
+    }
+
+
+def run_augmented(
+    data: LocalizationData,
+    augmented_mcl_step: Callable,
+    particles,
+    field,
+    params: dict,
+    rng: np.random.Generator,
+    *,
+    kidnap_at: float | None = None,
+    kidnap_to=None,
+    every: int = 2,
+    t_end: float | None = None,
+    progress: bool = True,
+    desc: str = "augmented MCL",
+) -> dict:
+    """Run augmented MCL over the bag, optionally kidnapping the robot.
+
+    A kidnapping at ``kidnap_at`` seconds moves every particle rigidly so that
+    the filter believes the robot is at ``kidnap_to`` (a confidently wrong
+    pose) while the data go on from the true pose: the same as carrying the
+    robot away without telling the filter.
+
+    Returns
+    -------
+    dict
+        As :func:`run_mcl`, plus ``w_slow``, ``w_fast`` (T,) and
+        ``random_fraction`` (T,) = ``max(0, 1 - w_fast / w_slow)``.
+    """
+    p = as_poses("particles", particles)
+    w = np.full(len(p), 1.0 / len(p))
+    end = len(data) if t_end is None else data.index_at(t_end) + 1
+    idx = np.arange(0, end, int(every))
+    w_slow = w_fast = 0.0
+    est, slow, fast = [], [], []
+    kidnapped = kidnap_at is None
+    for i in tqdm(idx, desc=desc, unit="scan", disable=not progress, leave=False):
+        if not kidnapped and data.t[i] >= kidnap_at:
+            # move the whole cloud rigidly so that the current estimate lands on kidnap_to
+            target = as_array("kidnap_to", kidnap_to, shape=(3,), finite=True)
+            p = compose(target, relative(estimate_pose(p, w), p))
+            kidnapped = True
+        prev = data.odom[max(i - int(every), 0)]
+        prm = {**params, "laser_pose": data.laser_pose}
+        p, w, w_slow, w_fast = augmented_mcl_step(
+            p, w, prev, data.odom[i], data.scan(i), field, prm, rng, data.grid, w_slow, w_fast
+        )
+        p, w = np.asarray(p, dtype=float), np.asarray(w, dtype=float)
+        est.append(estimate_pose(p, w))
+        slow.append(w_slow)
+        fast.append(w_fast)
+    est = np.array(est)
+    pos, head = pose_errors(est, data.truth[idx])
+    slow, fast = np.array(slow), np.array(fast)
+    return {
+        "t": data.t[idx],
+        "estimate": est,
+        "truth": data.truth[idx],
+        "position_error": pos,
+        "heading_error": head,
+        "w_slow": slow,
+        "w_fast": fast,
+        "random_fraction": np.clip(1.0 - fast / np.where(slow > 0, slow, 1.0), 0.0, 1.0),
+        "particles": p,
+        "weights": w,
+    }
+
+
+def kld_resample(
+    particles,
+    weights,
+    rng,
+    kld_sample_size: Callable,
+    *,
+    epsilon: float = 0.05,
+    z: float = 2.326,
+    bin_size=(0.5, 0.5, math.radians(10.0)),
+    n_min: int = 100,
+    n_max: int = 5000,
+) -> np.ndarray:
+    """KLD-sampling (Table 8.4), vectorized: draw until the sample size bound of the occupied bins is met.
+
+    ``n_max`` particles are drawn i.i.d. from the weights (as AMCL's
+    ``pf_update_resample`` draws them one by one); ``k_j`` is the number of
+    distinct (x, y, theta) bins among the first ``j`` draws, and the set is cut
+    at the first ``j >= max(n_min, kld_sample_size(k_j, epsilon, z))``
+    (AMCL's bins are 0.5 m, 0.5 m, 10 degrees).
+
+    Returns
+    -------
+    numpy.ndarray, shape (n, 3)
+        The new particle set; its size ``n`` adapts to the belief's spread.
+    """
+    p = as_poses("particles", particles)
+    w = as_array("weights", weights, shape=(len(p),), finite=True, nonnegative=True)
+    draws = p[rng.choice(len(p), size=int(n_max), p=w / w.sum())]
+    cells = np.floor(draws / np.asarray(bin_size, dtype=float)).astype(np.int64)
+    _, first = np.unique(cells, axis=0, return_index=True)
+    new_bin = np.zeros(len(draws), dtype=np.int64)
+    new_bin[first] = 1
+    k = np.cumsum(new_bin)
+    need = np.maximum(np.asarray(kld_sample_size(k, epsilon, z), dtype=float), n_min)
+    done = np.flatnonzero(np.arange(1, len(draws) + 1) >= need)
+    n = int(done[0]) + 1 if done.size else len(draws)
+    return draws[:n]
+
+
+def run_kld(
+    data: LocalizationData,
+    mcl_step: Callable,
+    kld_sample_size: Callable,
+    particles,
+    field,
+    params: dict,
+    rng: np.random.Generator,
+    *,
+    epsilon: float = 0.05,
+    z: float = 2.326,
+    n_min: int = 200,
+    n_max: int = 5000,
+    every: int = 2,
+    t_end: float | None = None,
+    progress: bool = True,
+    desc: str = "MCL with KLD-sampling",
+) -> dict:
+    """MCL whose resampling is KLD-sampling: ``mcl_step`` predicts and weights, :func:`kld_resample` resamples.
+
+    ``mcl_step`` is called with ``resample_interval`` larger than the run, so it
+    never resamples itself.
+
+    Returns
+    -------
+    dict
+        As :func:`run_mcl` plus ``n_particles`` (T,): the particles each update used
+        (the first is the initial set's size).
+    """
+    p = as_poses("particles", particles)
+    w = np.full(len(p), 1.0 / len(p))
+    end = len(data) if t_end is None else data.index_at(t_end) + 1
+    idx = np.arange(0, end, int(every))
+    est, counts = [], []
+    for i in tqdm(idx, desc=desc, unit="scan", disable=not progress, leave=False):
+        prev = data.odom[max(i - int(every), 0)]
+        prm = {
+            **params,
+            "laser_pose": data.laser_pose,
+            "resample_interval": 10**9,
+            "update_count": 0,
+            "force_update": True,
+        }
+        p, w, _ = mcl_step(p, w, prev, data.odom[i], data.scan(i), field, prm, rng)
+        p, w = np.asarray(p, dtype=float), np.asarray(w, dtype=float)
+        est.append(estimate_pose(p, w))
+        counts.append(len(p))  # the particles this update used
+        p = kld_resample(p, w, rng, kld_sample_size, epsilon=epsilon, z=z, n_min=n_min, n_max=n_max)
+        w = np.full(len(p), 1.0 / len(p))
+    est = np.array(est)
+    pos, head = pose_errors(est, data.truth[idx])
+    return {
+        "t": data.t[idx],
+        "estimate": est,
+        "truth": data.truth[idx],
+        "position_error": pos,
+        "heading_error": head,
+        "n_particles": np.array(counts),
+        "particles": p,
+        "weights": w,
+    }
+
+
+# ----------------------------------------------------------------------------------------------
+# figures
+# ----------------------------------------------------------------------------------------------
+def plot_likelihood_field(field: dict, ax: Axes | None = None, *, title: str | None = None) -> Axes:
+    """The likelihood field in log space, ``log p_hit(d(x, y))`` (seed 004, figure 3)."""
+    dist = np.asarray(field["distance"], dtype=float)
+    sigma = float(field["sigma_hit"])
+    log_p = -0.5 * (dist / sigma) ** 2 - np.log(np.sqrt(2 * np.pi) * sigma)
+    res = float(field["resolution"])
+    x0, y0 = np.asarray(field["origin"], dtype=float)[:2]
+    ax = ax or new_axes(title or "Likelihood field in log space", figsize=(9, 5))
+    if title:
+        ax.set_title(title)
+    im = ax.imshow(
+        log_p,
+        origin="lower",
+        cmap="viridis",
+        interpolation="nearest",
+        extent=(x0, x0 + dist.shape[1] * res, y0, y0 + dist.shape[0] * res),
+    )
+    ax.figure.colorbar(
+        im, ax=ax, label=r"$\log \mathcal{N}(d; 0, \sigma_{hit}^2)$  [log(1/m)]", shrink=0.8
+    )
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    return ax
+
+
+def plot_snapshots(
+    grid: OccupancyGrid,
+    result: dict,
+    truth_at: Callable | None = None,
+    *,
+    title: str = "MCL",
+    max_points: int = 3000,
+) -> plt.Figure:
+    """The particles at each snapshot time (seed 004, figures 4 and 5), true pose and estimate marked.
+
+    ``result`` is from :func:`run_mcl`; the true pose at a snapshot is the
+    ground truth of the scan it was taken at.
+    """
+    times = sorted(result["snapshots"])
+    ncols = 4
+    nrows = max(1, int(np.ceil(len(times) / ncols)))
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 2.9 * nrows), squeeze=False)
+    for ax, t in zip(axes.flat, times, strict=False):
+        p, w = result["snapshots"][t]
+        plot_map(grid, ax, title=f"t = {t:g} s")
+        show = p if len(p) <= max_points else p[np.linspace(0, len(p) - 1, max_points).astype(int)]
+        ax.scatter(
+            show[:, 0],
+            show[:, 1],
+            s=4,
+            c="tab:red",
+            alpha=0.5,
+            linewidths=0,
+            label="particles",
+            zorder=3,
+        )
+        k = int(np.argmin(np.abs(result["t"] - t)))
+        truth, est = result["truth"][k], result["estimate"][k]
+        for pose, color, name in ((truth, "tab:green", "true pose"), (est, "tab:blue", "estimate")):
+            ax.plot(
+                pose[0], pose[1], "o", mfc="none", mec=color, mew=1.5, ms=9, label=name, zorder=4
+            )
+            ax.arrow(
+                pose[0],
+                pose[1],
+                0.9 * np.cos(pose[2]),
+                0.9 * np.sin(pose[2]),
+                color=color,
+                width=0.06,
+                length_includes_head=True,
+                zorder=4,
+            )
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+    for ax in list(axes.flat)[len(times) :]:
+        ax.axis("off")
+    axes.flat[0].legend(loc="lower left", fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_errors(
+    results: dict, *, title: str = "Localization error against time", skip: float | None = None
+):
+    """Position and heading error against time, one line per run (``{label: result}``)."""
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
+    for label, r in results.items():
+        a1.plot(r["t"], r["position_error"], label=label)
+        a2.plot(r["t"], np.rad2deg(r["heading_error"]), label=label)
+    if skip is not None:
+        for a in (a1, a2):
+            a.axvline(skip, color="gray", ls=":", lw=1)
+    a1.set_ylabel("position error [m]")
+    a2.set_ylabel("heading error [deg]")
+    a2.set_xlabel("time [s]")
+    a1.set_yscale("log")
+    a2.set_yscale("log")
+    a1.set_ylim(1e-3, None)
+    a2.set_ylim(1e-2, None)
+    a1.legend()
+    a1.set_title(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_particle_count(result: dict, *, title: str = "Particle count with KLD-sampling"):
+    """Number of particles and position error against time (:func:`run_kld`)."""
+    ax = new_axes(title, "time [s]", "particles", equal=False, figsize=(9, 3.5))
+    ax.plot(result["t"], result["n_particles"], color="tab:purple", label="particles")
+    ax.set_yscale("log")
+    ax2 = ax.twinx()
+    ax2.plot(
+        result["t"], result["position_error"], color="tab:orange", lw=1, label="position error"
+    )
+    ax2.set_ylabel("position error [m]")
+    ax2.set_yscale("log")
+    ax.legend(loc="upper right")
+    ax2.legend(loc="center right")
+    return ax
