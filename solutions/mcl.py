@@ -1,4 +1,4 @@
-r"""Lab 05, Monte Carlo localization: MCL on a bag with the odometry motion model and a likelihood field.
+r"""Lab 05, Monte Carlo localization on a bag: odometry motion model and likelihood field.
 
 Reference solutions for ``notebooks/05_mcl.ipynb`` (seed 004, part 3; seed 000,
 sections 1.2 and 2: AMCL's parameters, its odometry models and
@@ -194,10 +194,12 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
 
     .. math::
 
-        \hat\delta_{rot1} &= \delta_{rot1} - \varepsilon(\alpha_1 \delta_{rot1}^2 + \alpha_2 \delta_{trans}^2) \\
+        \hat\delta_{rot1} &= \delta_{rot1}
+            - \varepsilon(\alpha_1 \delta_{rot1}^2 + \alpha_2 \delta_{trans}^2) \\
         \hat\delta_{trans} &= \delta_{trans} - \varepsilon(\alpha_3 \delta_{trans}^2
                                + \alpha_4 \delta_{rot1}^2 + \alpha_4 \delta_{rot2}^2) \\
-        \hat\delta_{rot2} &= \delta_{rot2} - \varepsilon(\alpha_1 \delta_{rot2}^2 + \alpha_2 \delta_{trans}^2)
+        \hat\delta_{rot2} &= \delta_{rot2}
+            - \varepsilon(\alpha_1 \delta_{rot2}^2 + \alpha_2 \delta_{trans}^2)
 
     where :math:`\varepsilon(b^2)` is a zero-mean Gaussian of **variance**
     :math:`b^2`. (Seed 004's eq. 12 writes the noise as
@@ -731,7 +733,7 @@ def _mixture(prm) -> tuple[float, float]:
 
 
 def _odometry_deltas(odom_prev, odom_now) -> tuple[float, float, float]:
-    """``(rot1, trans, rot2)`` of the odometry motion (Table 5.6, lines 2-4) with AMCL's in-place guard."""
+    """``(rot1, trans, rot2)`` of the odometry motion (Table 5.6, lines 2-4), in-place guarded."""
     prev = as_array("odom_prev", odom_prev, shape=(3,), finite=True)
     now = as_array("odom_now", odom_now, shape=(3,), finite=True)
     dx, dy = now[0] - prev[0], now[1] - prev[1]
@@ -744,7 +746,8 @@ def _odometry_deltas(odom_prev, odom_now) -> tuple[float, float, float]:
 def _scan_arrays(scan):
     if not isinstance(scan, dict):
         raise TypeError(
-            f"scan must be a dict with ranges, angles, range_min, range_max, got {type(scan).__name__}"
+            "scan must be a dict with ranges, angles, range_min, range_max, "
+            f"got {type(scan).__name__}"
         )
     missing = [k for k in ("ranges", "angles", "range_min", "range_max") if k not in scan]
     if missing:

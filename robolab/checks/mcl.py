@@ -105,7 +105,7 @@ def check_init_gaussian(init_gaussian):
 
 @check
 def check_sample_motion_model_odometry(sample_motion_model_odometry):
-    """Noise-free: the particle moves as the odometry did, in its own frame; with noise, the spread grows."""
+    """Noise-free, a particle moves as the odometry did, in its own frame; noise spreads it."""
     p = np.array([[0.0, 0.0, np.pi / 2], [1.0, 1.0, 0.0]])
     moved = sample_motion_model_odometry(
         p, [0.0, 0.0, 0.0], [1.0, 0.0, 0.5], (0, 0, 0, 0), np.random.default_rng(3)
@@ -128,7 +128,8 @@ def check_sample_motion_model_odometry(sample_motion_model_odometry):
     if abs(std - 0.2) > 0.01:
         raise CheckFailed(
             f"with alpha3 = 0.04 and trans = 1 m the translation variance is alpha3 trans^2 = 0.04 "
-            f"(std 0.2 m); your std is {std:.3f} m. Table 5.6 uses variances, not standard deviations"
+            f"(std 0.2 m); your std is {std:.3f} m. "
+            "Table 5.6 uses variances, not standard deviations"
         )
 
 
@@ -200,7 +201,7 @@ def check_low_variance_resample(low_variance_resample):
 
 @check
 def check_mcl_step(mcl_step):
-    """A filter around the true pose stays there; a tiny motion below the thresholds does nothing."""
+    """A filter at the true pose stays there; a motion below the thresholds does nothing."""
     grid = _box()
     truth = np.array([0.4, 0.5, 0.3])
     rng = np.random.default_rng(7)

@@ -31,8 +31,9 @@ PROTOCOL = 5
 #: Deepest nesting of containers accepted in a value.
 MAX_DEPTH = 64
 
-_PLAIN_SCALARS = (type(None), bool, int, float, complex, fractions.Fraction, str, bytes, bytearray, slice,
-                  range)
+_PLAIN_SCALARS = (
+    type(None), bool, int, float, complex, fractions.Fraction, str, bytes, bytearray, slice, range,
+)
 _CONTAINERS = (list, tuple, set, frozenset)
 
 

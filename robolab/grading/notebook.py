@@ -232,7 +232,7 @@ def extract_definitions(cell_source: str, known: set[str] | None = None) -> str:
 
 
 def _reads_only(node: ast.stmt, known: set[str]) -> bool:
-    """True when an assignment reads only known names or builtins (other definitions always pass)."""
+    """True when an assignment reads only known names or builtins (other statements pass)."""
     if not isinstance(node, (ast.Assign, ast.AnnAssign)):
         return True
     read = {n.id for n in ast.walk(node.value) if isinstance(n, ast.Name)}

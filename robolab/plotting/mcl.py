@@ -105,6 +105,10 @@ class LocalizationData:
         return int(np.clip(np.searchsorted(self.t, t + 1e-9, side="right") - 1, 0, len(self) - 1))
 
 
+#: AMCL's default KLD histogram bins: 0.5 m in x and y, 10 degrees in heading.
+KLD_BIN_SIZE = (0.5, 0.5, math.radians(10.0))
+
+
 def load_localization(bag_path=None, map_path=None) -> LocalizationData:
     """Read ``data/localization.bag`` and ``data/office.yaml`` (or the given files).
 
@@ -180,7 +184,7 @@ def estimate_pose(particles, weights=None, bin_size: float = CLUSTER_BIN) -> np.
 
 
 def pose_errors(estimates, truth) -> tuple[np.ndarray, np.ndarray]:
-    """Position error (m) and absolute heading error (rad) of ``(T, 3)`` estimates against ``(T, 3)`` truth."""
+    """Position error (m) and absolute heading error (rad) of ``(T, 3)`` estimates vs truth."""
     e = as_poses("estimates", estimates)
     g = as_poses("truth", truth)
     if e.shape != g.shape:
@@ -341,11 +345,11 @@ def kld_resample(
     *,
     epsilon: float = 0.05,
     z: float = 2.326,
-    bin_size=(0.5, 0.5, math.radians(10.0)),
+    bin_size=KLD_BIN_SIZE,
     n_min: int = 100,
     n_max: int = 5000,
 ) -> np.ndarray:
-    """KLD-sampling (Table 8.4), vectorized: draw until the sample size bound of the occupied bins is met.
+    """KLD-sampling (Table 8.4), vectorized: draw until the bound for the occupied bins is met.
 
     ``n_max`` particles are drawn i.i.d. from the weights (as AMCL's
     ``pf_update_resample`` draws them one by one); ``k_j`` is the number of
@@ -390,7 +394,7 @@ def run_kld(
     progress: bool = True,
     desc: str = "MCL with KLD-sampling",
 ) -> dict:
-    """MCL whose resampling is KLD-sampling: ``mcl_step`` predicts and weights, :func:`kld_resample` resamples.
+    """MCL with KLD-sampling: ``mcl_step`` predicts and weights, :func:`kld_resample` resamples.
 
     ``mcl_step`` is called with ``resample_interval`` larger than the run, so it
     never resamples itself.
@@ -471,7 +475,7 @@ def plot_snapshots(
     title: str = "MCL",
     max_points: int = 3000,
 ) -> plt.Figure:
-    """The particles at each snapshot time (seed 004, figures 4 and 5), true pose and estimate marked.
+    """Particles at each snapshot time (seed 004, figures 4 and 5), true pose and estimate marked.
 
     ``result`` is from :func:`run_mcl`; the true pose at a snapshot is the
     ground truth of the scan it was taken at.

@@ -112,7 +112,7 @@ def _field(grid, sigma_hit, max_dist):
 
 
 def _model_oracle(scan, particles, field, z_hit, z_rand, laser_pose):
-    """Table 6.3 beam by beam in float64 (max-range and invalid beams skipped, off-map at max_dist)."""
+    """Table 6.3 beam by beam in float64 (max-range, invalid beams skipped; off-map at max_dist)."""
     r, a = np.asarray(scan["ranges"], float), np.asarray(scan["angles"], float)
     ok = np.isfinite(r) & (r >= scan["range_min"]) & (r < scan["range_max"])
     out = np.zeros(len(particles))
@@ -317,7 +317,8 @@ def test_motion_model_corrected_reverse_motion(lab):
         else:  # heading noise of std ~0.65 rad: check the circular spread E[cos] = exp(-var / 2)
             expected = math.exp(-v_head / 2)
             assert abs(np.cos(head).mean() - expected) < 0.01, (
-                f"plain model: E[cos(heading change)] {np.cos(head).mean():.4f}, Table 5.6 gives {expected:.4f}"
+                f"plain model: E[cos(heading change)] {np.cos(head).mean():.4f}, "
+                f"Table 5.6 gives {expected:.4f}"
             )
 
 
@@ -355,7 +356,7 @@ def test_motion_model_noise_free_and_bad_input(lab):
         )
 
 
-# ======================================= likelihood_field (12) =======================================
+# ===================================== likelihood_field (12) ======================================
 @grades("likelihood_field", points=8)
 def test_likelihood_field_matches_brute_force(lab):
     rng = np.random.default_rng(20)
@@ -396,7 +397,7 @@ def test_likelihood_field_gaussian_and_edge_cases(lab):
         lab.likelihood_field(grid, 0.0, 1.0)
 
 
-# ==================================== likelihood_field_model (18) ====================================
+# ================================== likelihood_field_model (18) ===================================
 LASER = np.array([0.1, 0.05, 0.3])
 
 
@@ -459,7 +460,8 @@ def test_model_highest_at_true_pose(lab):
         assert np.argmax(logw) == min(100, len(others)), (
             "the true pose must have the highest log-likelihood"
         )
-        # without the laser offset the model describes another sensor: the true pose no longer scores best
+        # without the laser offset the model describes another sensor: the true pose
+        # no longer scores best
         logw0 = _f(lab.likelihood_field_model(scan, np.asarray(true)[None, :], field, {**MODEL}))
         assert logw0[0] < logw[min(100, len(others))] - 1.0, "params['laser_pose'] must be applied"
 
@@ -503,7 +505,7 @@ def test_model_off_map_and_max_range_beams(lab):
         lab.likelihood_field_model(scan, far, field, {"z_hit": -0.5, "z_rand": 0.1})
 
 
-# ==================================== normalize_log_weights (4) ====================================
+# ================================== normalize_log_weights (4) ====================================
 @grades("normalize_log_weights", points=4)
 def test_normalize_log_weights_without_underflow(lab):
     logw = np.array([-1000.0, -1001.0, -1002.5, -np.inf, -999.0])
@@ -516,7 +518,7 @@ def test_normalize_log_weights_without_underflow(lab):
         lab.normalize_log_weights(np.array([0.0, np.nan]))
 
 
-# ==================================== low_variance_resample (3) ====================================
+# ================================== low_variance_resample (3) ====================================
 @grades("low_variance_resample", points=3)
 def test_low_variance_resample_counts(lab):
     particles = np.column_stack([np.arange(8.0), np.zeros(8), np.zeros(8)])
@@ -528,7 +530,7 @@ def test_low_variance_resample_counts(lab):
     np.testing.assert_array_equal(counts, [0, 4, 1, 1, 0, 2, 0, 0])
 
 
-# ========================================== mcl_step (17) ==========================================
+# ======================================== mcl_step (17) ==========================================
 @grades("mcl_step", points=3)
 def test_mcl_step_update_thresholds_and_resample_interval(lab):
     grid = _room()
@@ -640,7 +642,8 @@ def test_mcl_tracking_on_the_bag(lab, bag, bag_field):
     t, pos, head = _run(lab, bag, bag_field, p0, seed=61, every=2, t_end=bag.t[-1])
     late = t >= 5.0
     assert pos[late].max() < 0.25, (
-        f"position error up to {pos[late].max():.2f} m after 5 s (at t = {t[late][np.argmax(pos[late])]:.1f} s)"
+        f"position error up to {pos[late].max():.2f} m after 5 s "
+        f"(at t = {t[late][np.argmax(pos[late])]:.1f} s)"
     )
     assert head[late].max() < 0.2, f"heading error up to {head[late].max():.2f} rad after 5 s"
 
@@ -707,7 +710,7 @@ def test_mcl_global_localization_converges(lab, bag):
     )
 
 
-# ========================================= kld_sample_size (6) =========================================
+# ===================================== kld_sample_size (6) ========================================
 def _amcl_resample_limit(k, pop_err, pop_z, min_samples, max_samples):
     """AMCL's pf_resample_limit (pf.c), transcribed."""
     if k < 1 or k > max_samples:
@@ -745,7 +748,7 @@ def test_kld_sample_size_equals_amcl_resample_limit(lab):
         lab.kld_sample_size(5, 0.0, 2.326)
 
 
-# ======================================= augmented_mcl_step (6) =======================================
+# =================================== augmented_mcl_step (6) ======================================
 @grades("augmented_mcl_step", points=6)
 def test_augmented_mcl_injects_random_particles_after_a_kidnapping(lab):
     grid = _room()
@@ -782,12 +785,14 @@ def test_augmented_mcl_injects_random_particles_after_a_kidnapping(lab):
     assert fast2 < slow2 < slow, "the likelihood dropped: w_fast must fall faster than w_slow"
     frac = 1.0 - fast2 / slow2
     far = np.mean(np.hypot(*(p2[:, :2] - true[:2]).T) > 0.5)
-    # random particles land > 0.5 m away with probability q (free area beyond 0.5 m / free area, > 0.9)
+    # random particles land > 0.5 m away with probability q
+    # (free area beyond 0.5 m / free area, > 0.9)
     rows, cols = np.nonzero(grid.free)
     centres = grid.cell_to_world(np.stack([rows, cols], -1))
     q = np.mean(np.hypot(*(centres - true[:2]).T) > 0.5)
     mean = frac * q
     assert abs(far - mean) < 5 * math.sqrt(mean * (1 - mean) / n) + 0.01, (
-        f"{far:.3f} of the particles were replaced by random ones, expected about {mean:.3f} (1 - w_fast / w_slow)"
+        f"{far:.3f} of the particles were replaced by random ones, "
+        f"expected about {mean:.3f} (1 - w_fast / w_slow)"
     )
     assert frac > 0.2

@@ -590,7 +590,7 @@ def test_logodds_update_is_sum_of_evidence(lab):
 
 @pytest.mark.grades("logodds_update", points=3)
 def test_logodds_update_single_beam_profile(lab):
-    """One beam: free before z - alpha/2, occupied around z, untouched beyond; no-return: all free."""
+    """One beam: free before z - alpha/2, occupied around z, untouched beyond; no return: free."""
     grid = _grid(1, 40, 0.1)
     params = {"l_occ": 2.0, "l_free": -1.0, "l_0": 0.0, "alpha": 0.3, "beta": 0.1}
     scan = _scan([2.0], [0.0], 0.05, 3.5)
