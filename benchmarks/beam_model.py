@@ -29,20 +29,14 @@ figure is the steadier one on a shared machine).
 
 from __future__ import annotations
 
-import os
+import math
+import sys
+from pathlib import Path
 
-# One core, one thread: set before numpy is imported.
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"
-if hasattr(os, "sched_setaffinity"):
-    os.sched_setaffinity(0, {0})
+import timing  # before numpy: one BLAS thread
 
-import math  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-import numpy as np  # noqa: E402
+# isort: split
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -112,18 +106,8 @@ def vectorized(scan, grid, poses, params):
     return lab.beam_range_finder_model(scan, z_star, params, log=True)
 
 
-def best_of(fn, repeats=REPEATS):
-    """(best wall seconds, best CPU seconds, last result)."""
-    wall, cpu, out = [], [], None
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        out = fn()
-        wall.append(time.perf_counter() - t0)
-        cpu.append(time.process_time() - c0)
-    return min(wall), min(cpu), out
-
-
 def main():
+    pinned = timing.pin_to_one_core()
     grid = load_maze()
     rng = np.random.default_rng(0)
     free = np.argwhere(grid.free)
@@ -144,47 +128,52 @@ def main():
 
     rows = []
     n_seed, n_pose = 20, 200
-    w, c, ref = best_of(lambda: seed_loop(scan, grid, poses[:n_seed], PARAMS), repeats=2)
+    ref = seed_loop(scan, grid, poses[:n_seed], PARAMS)
+    t = timing.best_of(seed_loop, 2, scan, grid, poses[:n_seed], PARAMS)
     rows.append(
         (
             "baseline: seed loop, castraysingle per beam",
-            w * N_POSES / n_seed,
-            c * N_POSES / n_seed,
+            t.wall * N_POSES / n_seed,
+            t.cpu * N_POSES / n_seed,
             f"{n_seed} poses, scaled",
         )
     )
-    w, c, got = best_of(lambda: per_pose_loop(scan, grid, poses[:n_pose], PARAMS), repeats=2)
+    got = per_pose_loop(scan, grid, poses[:n_pose], PARAMS)
     assert np.allclose(got[:n_seed], ref, rtol=1e-9), "per-pose loop disagrees with the seed loop"
+    t = timing.best_of(per_pose_loop, 2, scan, grid, poses[:n_pose], PARAMS)
     rows.append(
         (
             "per-pose loop, beams vectorized",
-            w * N_POSES / n_pose,
-            c * N_POSES / n_pose,
+            t.wall * N_POSES / n_pose,
+            t.cpu * N_POSES / n_pose,
             f"{n_pose} poses, scaled",
         )
     )
-    w, c, got = best_of(lambda: vectorized(scan, grid, poses, PARAMS))
+    got = vectorized(scan, grid, poses, PARAMS)
     assert np.allclose(got[:n_seed], ref, rtol=1e-9), "vectorized disagrees with the seed loop"
-    rows.append(("vectorized: cast_rays + beam_range_finder_model", w, c, "all 2500 poses"))
-    z_star = cast_rays(grid, poses, BEAMS, PARAMS["max_range"])
-    w_cast, c_cast, _ = best_of(lambda: cast_rays(grid, poses, BEAMS, PARAMS["max_range"]))
-    w_model, c_model, _ = best_of(
-        lambda: lab.beam_range_finder_model(scan, z_star, PARAMS, log=True)
+    t = timing.best_of(vectorized, REPEATS, scan, grid, poses, PARAMS)
+    rows.append(
+        ("vectorized: cast_rays + beam_range_finder_model", t.wall, t.cpu, "all 2500 poses")
     )
-    rows.append(("  of which ray casting (152,500 rays)", w_cast, c_cast, ""))
-    rows.append(("  of which the model, log form", w_model, c_model, ""))
+    z_star = cast_rays(grid, poses, BEAMS, PARAMS["max_range"])
+    cast = timing.best_of(cast_rays, REPEATS, grid, poses, BEAMS, PARAMS["max_range"])
+    model = timing.best_of(lab.beam_range_finder_model, REPEATS, scan, z_star, PARAMS, log=True)
+    rows.append(("  of which ray casting (152,500 rays)", cast.wall, cast.cpu, ""))
+    rows.append(("  of which the model, log form", model.wall, model.cpu, ""))
     g = np.arange(25) * 0.4 + 0.225  # 25 x 25 positions (cell centres), 4 headings
     positions = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
     headings = np.deg2rad([0.0, 90.0, 180.0, -90.0])
-    w, c, _ = best_of(
-        lambda: lab.pose_likelihood_map(scan, grid, BEAMS, PARAMS, positions, headings)
+    t = timing.best_of(
+        lab.pose_likelihood_map, REPEATS, scan, grid, BEAMS, PARAMS, positions, headings
     )
-    rows.append(("pose_likelihood_map, 625 positions x 4 headings", w, c, "shared directions"))
+    rows.append(
+        ("pose_likelihood_map, 625 positions x 4 headings", t.wall, t.cpu, "shared directions")
+    )
 
     base = rows[0][2]
     print(
         f"beam model log-likelihood, {N_POSES} poses x {BEAMS.size} beams on the maze, "
-        f"one core, best of {REPEATS}"
+        f"{pinned}, best of {REPEATS}"
     )
     print(
         f"{'method':50s} {'wall [ms]':>10s} {'cpu [ms]':>10s} {'eval/s (cpu)':>13s} "
@@ -196,7 +185,7 @@ def main():
     print(
         f"target: >= {TARGET:g} evaluations/s (arbitrary poses); measured {best:.1f}/s by CPU time "
         f"({'met' if best >= TARGET else 'NOT met'}); "
-        f"ray casting is {c_cast / rows[2][2]:.0%} of it"
+        f"ray casting is {cast.cpu / rows[2][2]:.0%} of it"
     )
 
 

@@ -20,9 +20,9 @@ Run: ``python benchmarks/fastslam.py``
 
 from __future__ import annotations
 
-import os
-import time
+import timing  # before numpy: one BLAS thread
 
+# isort: split
 import numpy as np
 
 from robolab.fiducials import FiducialRobot
@@ -93,35 +93,21 @@ def run_python_loop(state, steps, rng):
     return poses
 
 
-def best_of(fn, repeats, *args):
-    wall, cpu = [], []
-    for _ in range(repeats):
-        w, c = time.perf_counter(), time.process_time()
-        fn(*args)
-        wall.append(time.perf_counter() - w)
-        cpu.append(time.process_time() - c)
-    return min(wall), min(cpu)
-
-
 RUN = FiducialRobot(seed=0, n_fiducials=K, n_steps=STEPS).to_run()
 
 
 def main():
-    try:
-        os.sched_setaffinity(0, {0})
-        pinned = "pinned to core 0"
-    except (AttributeError, OSError):
-        pinned = "not pinned (sched_setaffinity unavailable)"
+    pinned = timing.pin_to_one_core()
     steps = [(RUN.commands[t], RUN.observations(t)) for t in range(STEPS)]
     n_obs = sum(len(z) for _, z in steps) / STEPS
     state = mapped_state(RUN, np.random.default_rng(0))
     run_vectorized(state, steps[:20], np.random.default_rng(1))  # warm-up
-    vec_wall, vec_cpu = best_of(run_vectorized, 3, state, steps, np.random.default_rng(2))
-    loop_wall, loop_cpu = best_of(
+    t_vec = timing.best_of(run_vectorized, 3, state, steps, np.random.default_rng(2))
+    t_loop = timing.best_of(
         run_python_loop, 3, state, steps[:BASELINE_STEPS], np.random.default_rng(3)
     )
-    vec = STEPS / vec_cpu, STEPS / vec_wall
-    loop = BASELINE_STEPS / loop_cpu, BASELINE_STEPS / loop_wall
+    vec = STEPS / t_vec.cpu, STEPS / t_vec.wall
+    loop = BASELINE_STEPS / t_loop.cpu, BASELINE_STEPS / t_loop.wall
 
     print(
         f"lab 07 FastSLAM: fastslam_step, M = {M} particles x K = {K} landmarks, "

@@ -14,9 +14,10 @@ Run: ``python benchmarks/landmark_pf.py``
 from __future__ import annotations
 
 import math
-import os
-import time
 
+import timing  # before numpy: one BLAS thread
+
+# isort: split
 import numpy as np
 
 from robolab.world import LANDMARKS
@@ -61,29 +62,18 @@ def step_python_loop(particles, z, rng):
     return np.array(out)
 
 
-def best_of(fn, repeats, *args):
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn(*args)
-        times.append(time.perf_counter() - t)
-    return min(times)
-
-
 def main():
-    try:
-        os.sched_setaffinity(0, {0})
-        pinned = "pinned to core 0"
-    except (AttributeError, OSError):
-        pinned = "not pinned (sched_setaffinity unavailable)"
+    pinned = timing.pin_to_one_core()
     rng = np.random.default_rng(0)
     cloud = np.column_stack(
         [rng.normal(50, 5, N), rng.normal(50, 5, N), rng.uniform(-np.pi, np.pi, N)]
     )
     z = np.hypot(*(np.array([62.0, 64.0]) - LANDMARKS).T)
     step_vectorized(cloud, z, np.random.default_rng(1))  # warm-up
-    t_vec = best_of(step_vectorized, 15, cloud, z, np.random.default_rng(2))
-    t_loop_subset = best_of(step_python_loop, 3, cloud[:BASELINE_N], z, np.random.default_rng(3))
+    t_vec = timing.best_of(step_vectorized, 15, cloud, z, np.random.default_rng(2)).wall
+    t_loop_subset = timing.best_of(
+        step_python_loop, 3, cloud[:BASELINE_N], z, np.random.default_rng(3)
+    ).wall
     t_loop = t_loop_subset * N / BASELINE_N
 
     print(

@@ -14,11 +14,13 @@ Run: ``.venv/bin/python benchmarks/mcl.py``.
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from pathlib import Path
 
+import timing  # before numpy: one BLAS thread
+
+# isort: split
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -29,15 +31,6 @@ from solutions import mcl  # noqa: E402
 
 N_STEP, N_BAG, BEAMS, SUBSET = 5000, 2000, 60, 100
 PARAMS = {"alphas": (0.1, 0.1, 0.1, 0.1), "z_hit": 0.9, "z_rand": 0.1, "max_beams": BEAMS}
-
-
-def _best_of(fn, repeat: int) -> float:
-    best = math.inf
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t)
-    return best
 
 
 def _loop_model(scan, particles, field, laser_pose):
@@ -66,8 +59,7 @@ def _loop_model(scan, particles, field, laser_pose):
 
 
 def main() -> None:
-    if hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {0})
+    pinned = timing.pin_to_one_core()
     data = mclplot.load_localization()
     field = mcl.likelihood_field(data.grid, 0.1, 2.0)
     rng = np.random.default_rng(0)
@@ -77,15 +69,12 @@ def main() -> None:
     prm = {**PARAMS, "laser_pose": data.laser_pose, "force_update": True}
 
     rows = []
-    t_model = _best_of(lambda: mcl.likelihood_field_model(scan, particles, field, prm), 20)
-    t_step = _best_of(
-        lambda: mcl.mcl_step(
-            particles, weights, data.odom[99], data.odom[100], scan, field, prm, rng
-        ),
-        20,
-    )
+    t_model = timing.best_of(mcl.likelihood_field_model, 20, scan, particles, field, prm).wall
+    t_step = timing.best_of(
+        mcl.mcl_step, 20, particles, weights, data.odom[99], data.odom[100], scan, field, prm, rng
+    ).wall
     t_loop = (
-        _best_of(lambda: _loop_model(scan, particles[:SUBSET], field, data.laser_pose), 3)
+        timing.best_of(_loop_model, 3, scan, particles[:SUBSET], field, data.laser_pose).wall
         * N_STEP
         / SUBSET
     )
@@ -106,7 +95,8 @@ def main() -> None:
     speedup = data.t[-1] / t_bag
 
     print(
-        f"MCL benchmark (one core; {BEAMS} beams; likelihood field 0.05 m, {data.grid.shape[1]} x {data.grid.shape[0]} cells)"
+        f"MCL benchmark ({pinned}; {BEAMS} beams; likelihood field 0.05 m, "
+        f"{data.grid.shape[1]} x {data.grid.shape[0]} cells)"
     )
     print(f"{'what':58s} {'particles':>9s} {'time [ms]':>10s} {'rate [Hz]':>10s} {'vs loop':>8s}")
     for name, n, sec, gain in rows:

@@ -17,9 +17,10 @@ Run: ``python benchmarks/odometry_mapping.py``
 from __future__ import annotations
 
 import math
-import os
-import time
 
+import timing  # before numpy: one BLAS thread
+
+# isort: split
 import numpy as np
 
 from robolab import DATA_DIR
@@ -76,21 +77,8 @@ def run(update, scans, poses, grid, **kw):
     return hits, visits
 
 
-def best_of(fn, repeats, *args):
-    times = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn(*args)
-        times.append(time.perf_counter() - t)
-    return min(times)
-
-
 def main():
-    try:
-        os.sched_setaffinity(0, {0})
-        pinned = "pinned to core 0"
-    except (AttributeError, OSError):
-        pinned = "not pinned (sched_setaffinity unavailable)"
+    pinned = timing.pin_to_one_core()
     with BagReader(DATA_DIR / "mapping.bag") as bag:
         s = bag.scans("/base_scan")
         truth = bag.odometry("/ground_truth")
@@ -111,9 +99,11 @@ def main():
     n = len(scans)
 
     run(counting_map_update, scans[:5], poses[:5], grid)  # warm-up
-    t_vec = best_of(run, 3, counting_map_update, scans, poses, grid)
+    t_vec = timing.best_of(run, 3, counting_map_update, scans, poses, grid).wall
     sub = slice(0, n, n // BASELINE_SCANS)
-    t_loop_sub = best_of(run, 1, counting_update_python_loop, scans[sub], poses[sub], grid)
+    t_loop_sub = timing.best_of(
+        run, 1, counting_update_python_loop, scans[sub], poses[sub], grid
+    ).wall
     t_loop = t_loop_sub / len(scans[sub]) * n
     # the two implementations agree on the subset
     a = run(counting_map_update, scans[sub], poses[sub], grid)
@@ -126,7 +116,7 @@ def main():
             l = logodds_update(l, scan, pose, grid, INVERSE_SENSOR_MODEL)  # noqa: E741
         return l
 
-    t_log = best_of(logodds_run, 2, scans[:50], poses[:50]) / 50 * n
+    t_log = timing.best_of(logodds_run, 2, scans[:50], poses[:50]).wall / 50 * n
 
     print(
         f"lab 04 mapping: {n} scans of {s.beams} beams from data/mapping.bag, "

@@ -16,23 +16,18 @@ on a shared machine). The issue's target is 2 million rays per second.
 
 from __future__ import annotations
 
-import os
+import math
+import tempfile
+import time
+from pathlib import Path
 
-# One core, one thread: set before numpy is imported.
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[_var] = "1"
-if hasattr(os, "sched_setaffinity"):
-    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})
+import timing  # before numpy: one BLAS thread
 
-import math  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+# isort: split
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from robolab.maps import OccupancyGrid, load_map  # noqa: E402
-from robolab.raycast import cast_rays  # noqa: E402
+from robolab.maps import OccupancyGrid, load_map
+from robolab.raycast import cast_rays
 
 N_POSES, N_BEAMS, REPEATS, BASELINE_RAYS = 1000, 60, 5, 3000
 TARGET = 2e6
@@ -85,22 +80,13 @@ def python_loop(occ: list, u0: float, v0: float, phi: float, limit: float) -> fl
     return limit
 
 
-def best_of(fn, repeats: int) -> tuple[float, float]:
-    wall, cpu = math.inf, math.inf
-    for _ in range(repeats):
-        w0, c0 = time.perf_counter(), time.process_time()
-        fn()
-        wall = min(wall, time.perf_counter() - w0)
-        cpu = min(cpu, time.process_time() - c0)
-    return wall, cpu
-
-
 def main() -> None:
+    pinned = timing.pin_to_one_core()
     rng = np.random.default_rng(2)
     angles = np.linspace(-np.pi, np.pi, N_BEAMS, endpoint=False)
     cases = [("maze 203x203", maze_grid(), 4.0), ("boxes 2000x2000", boxes_grid(rng), 10.0)]
     n_rays = N_POSES * N_BEAMS
-    print(f"cast_rays, {N_POSES} poses x {N_BEAMS} beams = {n_rays} rays, one core")
+    print(f"cast_rays, {N_POSES} poses x {N_BEAMS} beams = {n_rays} rays, {pinned}")
     header = (
         f"{'map':<16} {'range':>6} {'first call':>11} {'M rays/s wall':>14} {'M rays/s cpu':>13}"
         f" {'loop M rays/s':>14} {'speed-up':>9} {'target 2M':>10}"
@@ -112,7 +98,8 @@ def main() -> None:
         t0 = time.perf_counter()
         ranges = cast_rays(grid, poses, angles, max_range)  # builds and caches the distance field
         first = time.perf_counter() - t0
-        wall, cpu = best_of(lambda: cast_rays(grid, poses, angles, max_range), REPEATS)  # noqa: B023
+        best = timing.best_of(cast_rays, REPEATS, grid, poses, angles, max_range)
+        wall, cpu = best.wall, best.cpu
 
         # Baseline on a subset of rays, checked against cast_rays.
         occ = grid.occupied.tolist()
