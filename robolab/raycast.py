@@ -92,7 +92,7 @@ import weakref
 import numpy as np
 
 from robolab.maps import OccupancyGrid
-from robolab.validation import as_array, as_poses, check_positive
+from robolab.validation import as_array, as_poses, check_finite, check_positive
 
 __all__ = ["RayCaster", "cast_rays", "castraysingle", "castrays"]
 
@@ -448,23 +448,13 @@ def castrays(xc, yc, thetas, map, lidarrange) -> np.ndarray:  # noqa: A002
         Range of each beam in pixels, with the semantics of :func:`cast_rays`.
     """
     grid = _pixel_grid(map)
-    xc = _finite_number("xc", xc)
-    yc = _finite_number("yc", yc)
+    xc = check_finite("xc", xc)
+    yc = check_finite("yc", yc)
     thetas = as_array("thetas", thetas, ndim=(0, 1), finite=True).reshape(-1)
     return cast_rays(grid, [xc, yc, 0.0], thetas, check_positive("lidarrange", lidarrange))[0]
 
 
 def castraysingle(xc, yc, theta, map, lidarrange) -> float:  # noqa: A002
     """Range in pixels of one beam (the lab's ``castraysingle``); see :func:`castrays`."""
-    theta = _finite_number("theta", theta)
+    theta = check_finite("theta", theta)
     return float(castrays(xc, yc, [theta], map, lidarrange)[0])
-
-
-def _finite_number(name: str, value) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError) as exc:
-        raise TypeError(f"{name} must be a number, got {type(value).__name__}") from exc
-    if not np.isfinite(v):
-        raise ValueError(f"{name} must be finite, got {value!r}")
-    return v
