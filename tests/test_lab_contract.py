@@ -160,3 +160,31 @@ def test_every_hidden_test_fails_on_the_stub_notebook(lab, stub_results):
     assert not vacuous, (
         f"these hidden tests pass on the unsolved notebook, so they test nothing: {vacuous}"
     )
+
+
+CHECKED = [lab for lab in WITH_NOTEBOOK if lab.name != "demo"]
+
+
+@pytest.mark.parametrize("lab", CHECKED, ids=_ids(CHECKED))
+def test_robolab_check_passes_solved_and_fails_stub(lab, tmp_path):
+    # The student's command: on the solved notebook every visible check passes; on
+    # the stub it says what is missing and exits non-zero, never claiming success.
+    from robolab.grading.solve import solve_paths
+
+    (solved,) = solve_paths([lab.notebook], tmp_path)
+
+    def check(path):
+        return subprocess.run(
+            [sys.executable, "-m", "robolab.cli", "check", str(path)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
+
+    good = check(solved)
+    assert good.returncode == 0, good.stdout + good.stderr
+    assert "visible checks passed" in good.stdout
+    bad = check(lab.notebook)
+    assert bad.returncode != 0
+    assert "not implemented yet" in bad.stdout + bad.stderr
+    assert "visible checks passed" not in bad.stdout

@@ -176,7 +176,8 @@ def load_notebook(path: str | Path) -> LoadedNotebook:
         if kept.strip():
             cells.append((index, kept))
 
-    source = "\n\n".join(kept for _, kept in cells)
+    future, cells = _hoist_future_imports(cells)
+    source = "\n\n".join([future] * bool(future) + [kept for _, kept in cells])
     return LoadedNotebook(
         path=path,
         lab=lab,
@@ -186,6 +187,29 @@ def load_notebook(path: str | Path) -> LoadedNotebook:
         exercise_cells=exercise_cells,
         cells=cells,
     )
+
+
+def _hoist_future_imports(cells: list[tuple[int, str]]) -> tuple[str, list[tuple[int, str]]]:
+    """Move ``from __future__`` imports out of the cells, to head the joined source.
+
+    Python allows them only at the start of a module; solved cells (and students)
+    put them at the top of every cell, which would make the joined source invalid.
+    """
+    future: list[str] = []
+    rest = []
+    for index, kept in cells:
+        lines = kept.splitlines(keepends=True)
+        drop = set()
+        for node in ast.parse(kept).body:
+            if isinstance(node, ast.ImportFrom) and node.module == "__future__":
+                drop.update(range(node.lineno - 1, node.end_lineno))
+                line = ast.get_source_segment(kept, node)
+                if line not in future:
+                    future.append(line)
+        remaining = "".join(line for i, line in enumerate(lines) if i not in drop)
+        if remaining.strip():
+            rest.append((index, remaining))
+    return "\n".join(future) + ("\n" if future else ""), rest
 
 
 def extract_definitions(cell_source: str, known: set[str] | None = None) -> str:

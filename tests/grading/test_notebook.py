@@ -171,6 +171,22 @@ def test_assignments_reading_dropped_names_are_dropped_across_cells(tmp_path):
     assert ns["N"] is len
 
 
+def test_future_imports_head_the_joined_source(tmp_path):
+    # Solved cells start with `from __future__ import annotations`; joined, they must
+    # still compile as one module (robolab check executes the source in one piece).
+    cell = (
+        "from __future__ import annotations\nimport math\n"
+        "def f{}(x: Later) -> float:\n    return math.pi\n"
+    )
+    path = write_notebook(tmp_path / "sub.ipynb", cell.format(1), cell.format(2))
+    nb = load_notebook(path)
+    assert nb.source.startswith("from __future__ import annotations\n")
+    assert nb.source.count("__future__") == 1
+    ns: dict = {}
+    exec(compile(nb.source, "sub", "exec"), ns)
+    assert ns["f2"](0) == pytest.approx(3.141592653589793)
+
+
 def test_notebook_without_lab_metadata(tmp_path):
     nb = load_notebook(write_notebook(tmp_path / "n.ipynb", "def f():\n    return 1", lab=None))
     assert nb.lab is None
