@@ -19,6 +19,7 @@ import dataclasses
 import fractions
 import io
 import pickle
+import re
 from collections.abc import Callable
 from typing import Any
 
@@ -63,11 +64,18 @@ def _frombuffer(buffer: Any, dtype: np.dtype, shape: Any, order: str) -> np.ndar
     return real(buffer, _refuse_object_dtype(dtype), shape, order)
 
 
+#: How Python <= 3.11 pickles a Fraction: its str(), "n" or "n/d" in decimal digits.
+_FRACTION_TEXT = re.compile(r"-?[0-9]{1,4300}(/[0-9]{1,4300})?")
+
+
 def _fraction(numerator: Any, denominator: Any = 1) -> fractions.Fraction:
-    # Fraction pickles as Fraction(numerator, denominator); accept exact ints only, so the
-    # constructor's string parsing and its float/Decimal paths are never reached.
+    # Python 3.12+ pickles Fraction(numerator, denominator), 3.10-3.11 Fraction("n/d").
+    # Accept exactly those two forms, so the constructor's float, Decimal and
+    # scientific-notation paths are never reached.
+    if type(numerator) is str and denominator == 1 and _FRACTION_TEXT.fullmatch(numerator):
+        return fractions.Fraction(numerator)
     if type(numerator) is not int or type(denominator) is not int:
-        raise CodecError("a Fraction must be built from two ints")
+        raise CodecError("a Fraction must be built from two ints or their 'n/d' text")
     return fractions.Fraction(numerator, denominator)
 
 

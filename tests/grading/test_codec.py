@@ -180,14 +180,25 @@ def test_only_robolab_dataclasses_can_be_registered():
 
 
 
-class _FractionFromString:
-    """Pickles as Fraction("1/2"): the constructor's string parsing must never be reached."""
+class _FractionFrom:
+    """Pickles as Fraction(*args), whatever this Python's own Fraction pickles as."""
+
+    def __init__(self, *args):
+        self.args = args
 
     def __reduce__(self):
-        return (fractions.Fraction, ("1/2",))
+        return (fractions.Fraction, self.args)
 
 
-def test_a_fraction_is_rebuilt_from_two_ints_only():
-    assert codec.loads(codec.dumps(fractions.Fraction(-7, 3))) == fractions.Fraction(-7, 3)
+@pytest.mark.parametrize("args", [(-7, 3), ("-7/3",)])
+def test_a_fraction_is_rebuilt_from_its_two_pickled_forms(args):
+    # Python 3.12+ pickles Fraction(n, d); 3.10 and 3.11 pickle Fraction("n/d").
+    got = codec.loads(pickle.dumps(_FractionFrom(*args)))
+    assert got == fractions.Fraction(-7, 3) and type(got) is fractions.Fraction
+
+
+@pytest.mark.parametrize("args", [("1e400",), ("0.5",), (" 1/2",), (1.5, 2), ("1/2", 3)])
+def test_a_fraction_from_anything_else_is_refused(args):
+    # The constructor's float, Decimal and scientific-notation paths are never reached.
     with pytest.raises(CodecError):
-        codec.loads(pickle.dumps(_FractionFromString()))
+        codec.loads(pickle.dumps(_FractionFrom(*args)))

@@ -18,7 +18,11 @@ from pathlib import Path
 
 import nbformat
 import pytest
-import tomllib
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: the backport
+    import tomli as tomllib
 
 from robolab.grading.labs import exercise_cells
 from robolab.grading.release import MARKER_FILE, ReleaseError, build_release, is_stub
