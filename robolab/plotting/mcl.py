@@ -197,6 +197,22 @@ def pose_errors(estimates, truth) -> tuple[np.ndarray, np.ndarray]:
 # ----------------------------------------------------------------------------------------------
 # runners
 # ----------------------------------------------------------------------------------------------
+def _run_result(data: LocalizationData, idx, est, particles, weights, **extra) -> dict:
+    """What every runner returns: times, estimates against truth, errors, the final particles."""
+    est = np.asarray(est)
+    pos, head = pose_errors(est, data.truth[idx])
+    return {
+        "t": data.t[idx],
+        "estimate": est,
+        "truth": data.truth[idx],
+        "position_error": pos,
+        "heading_error": head,
+        "particles": particles,
+        "weights": weights,
+        **extra,
+    }
+
+
 def _snapshot_indices(data: LocalizationData, times: Sequence[float]) -> dict[int, float]:
     return {data.index_at(t): float(t) for t in times if t <= data.t[-1] + 1e-9}
 
@@ -255,19 +271,15 @@ def run_mcl(
         est.append(estimate_pose(p, w))
         for j in [j for j in snaps if j <= i and snaps[j] not in snapshots]:
             snapshots[snaps[j]] = (p.copy(), w.copy())
-    est = np.array(est)
-    pos, head = pose_errors(est, data.truth[idx])
-    return {
-        "t": data.t[idx],
-        "estimate": est,
-        "truth": data.truth[idx],
-        "position_error": pos,
-        "heading_error": head,
-        "snapshots": snapshots,
-        "particles": p,
-        "weights": w,
-        "updates": updates,
-    }
+    return _run_result(
+        data,
+        idx,
+        est,
+        p,
+        w,
+        snapshots=snapshots,
+        updates=updates,
+    )
 
 
 def run_augmented(
@@ -320,21 +332,17 @@ def run_augmented(
         est.append(estimate_pose(p, w))
         slow.append(w_slow)
         fast.append(w_fast)
-    est = np.array(est)
-    pos, head = pose_errors(est, data.truth[idx])
     slow, fast = np.array(slow), np.array(fast)
-    return {
-        "t": data.t[idx],
-        "estimate": est,
-        "truth": data.truth[idx],
-        "position_error": pos,
-        "heading_error": head,
-        "w_slow": slow,
-        "w_fast": fast,
-        "random_fraction": np.clip(1.0 - fast / np.where(slow > 0, slow, 1.0), 0.0, 1.0),
-        "particles": p,
-        "weights": w,
-    }
+    return _run_result(
+        data,
+        idx,
+        est,
+        p,
+        w,
+        w_slow=slow,
+        w_fast=fast,
+        random_fraction=np.clip(1.0 - fast / np.where(slow > 0, slow, 1.0), 0.0, 1.0),
+    )
 
 
 def kld_resample(
@@ -425,18 +433,14 @@ def run_kld(
         counts.append(len(p))  # the particles this update used
         p = kld_resample(p, w, rng, kld_sample_size, epsilon=epsilon, z=z, n_min=n_min, n_max=n_max)
         w = np.full(len(p), 1.0 / len(p))
-    est = np.array(est)
-    pos, head = pose_errors(est, data.truth[idx])
-    return {
-        "t": data.t[idx],
-        "estimate": est,
-        "truth": data.truth[idx],
-        "position_error": pos,
-        "heading_error": head,
-        "n_particles": np.array(counts),
-        "particles": p,
-        "weights": w,
-    }
+    return _run_result(
+        data,
+        idx,
+        est,
+        p,
+        w,
+        n_particles=np.array(counts),
+    )
 
 
 # ----------------------------------------------------------------------------------------------
