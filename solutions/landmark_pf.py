@@ -14,6 +14,7 @@ import numpy as np
 
 from robolab.geometry import wrap_angle
 from robolab.validation import (
+    LOG_FLOAT_MAX,
     as_array,
     as_poses,
     check_count,
@@ -140,8 +141,14 @@ def measurement_probability(measured_ranges, particles, landmarks, sensor_noise)
         sq += (z[k] - r_hat) ** 2
     # The product of K Gaussians as one exp of the summed exponent:
     # prod_k N(z_k; r_k, s^2) = exp(-sum_k (z_k - r_k)^2 / (2 s^2)) / (sqrt(2 pi) s)^K
-    log_norm = lm.shape[0] * np.log(np.sqrt(2.0 * np.pi) * sigma)
-    return np.exp(-0.5 * sq / sigma**2 - log_norm)
+    # (sq / sigma) / sigma: sigma**2 underflows to 0 for sigma < 1e-162 (0 / 0 = NaN)
+    log_w = -0.5 * (sq / sigma) / sigma - lm.shape[0] * np.log(np.sqrt(2.0 * np.pi) * sigma)
+    if np.any(log_w > LOG_FLOAT_MAX):
+        raise ValueError(
+            f"sensor_noise={sigma!r} is too small: the Gaussian density of the best particle, "
+            f"exp({log_w.max():.4g}), overflows float64"
+        )
+    return np.exp(log_w)
 
 
 def low_variance_resample(particles, weights, rng):
@@ -200,6 +207,9 @@ def low_variance_resample(particles, weights, rng):
         )
     check_rng(rng)
     r = rng.uniform(0.0, 1.0 / n)
+    if not np.isfinite(total):  # weights near 1e308 overflow the sum: scale them first
+        w = w / w.max()
+        total = w.sum()
     c = np.cumsum(w / total)
     pointers = r + np.arange(n) / n
     idx = np.searchsorted(c, pointers, side="right")

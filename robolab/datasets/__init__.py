@@ -1,0 +1,1 @@
+"""Readers of public robot data sets (one module per format) and their download."""
