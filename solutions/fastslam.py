@@ -202,8 +202,11 @@ def h_jacobian(landmark, pose):
         H = \begin{pmatrix} \delta_x / \sqrt q & \delta_y / \sqrt q \\
                             -\delta_y / q & \delta_x / q \end{pmatrix}
 
-    :math:`q` is floored at :data:`MIN_SQ_RANGE` so that a landmark estimate
-    on top of the robot gives a large but finite Jacobian.
+    In the bearing row :math:`q` is floored at :data:`MIN_SQ_RANGE`, and the range
+    row is always a unit vector (the x axis for a landmark exactly on the robot),
+    so that a landmark estimate on top of the robot gives a large but finite
+    Jacobian whose inverse stays bounded; :math:`\sqrt q` is computed with
+    ``hypot``, which does not overflow for far landmarks.
 
     Parameters
     ----------
@@ -542,8 +545,11 @@ def _range_bearing_jacobian(lm, p):
     """The body of :func:`h_jacobian` on checked arrays."""
     dx = lm[..., 0] - p[..., 0]
     dy = lm[..., 1] - p[..., 1]
-    r = np.maximum(np.hypot(dx, dy), np.sqrt(MIN_SQ_RANGE))  # hypot: no overflow of dx^2
-    c, s = dx / r, dy / r
+    d = np.hypot(dx, dy)  # no overflow of dx^2 + dy^2
+    safe = d > 0
+    c = np.where(safe, dx / np.where(safe, d, 1.0), 1.0)  # the unit direction (x axis at d = 0)
+    s = np.where(safe, dy / np.where(safe, d, 1.0), 0.0)
+    r = np.maximum(d, np.sqrt(MIN_SQ_RANGE))  # the bearing's rate: 1 / r, bounded near the robot
     return np.stack([np.stack([c, s], -1), np.stack([-s / r, c / r], -1)], -2)
 
 
@@ -554,7 +560,8 @@ def _landmark_from_observation(z, pose, Qt):
     mu = np.stack([pose[..., 0] + r * np.cos(angle), pose[..., 1] + r * np.sin(angle)], -1)
     mu = np.broadcast_to(mu, np.broadcast_shapes(mu.shape, pose.shape[:-1] + (2,)))
     H_inv, _ = _inv2(_range_bearing_jacobian(mu, pose))
-    return mu.copy(), H_inv @ Qt @ np.swapaxes(H_inv, -1, -2)
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge range: checked by the caller
+        return mu.copy(), H_inv @ Qt @ np.swapaxes(H_inv, -1, -2)
 
 
 def _normalize_log_weights(log_w: np.ndarray) -> np.ndarray:

@@ -137,12 +137,13 @@ def measurement_probability(measured_ranges, particles, landmarks, sensor_noise)
     sq = np.zeros(p.shape[0])  # sum_k (z_k - r_hat_k)^2 for every particle
     for k in range(lm.shape[0]):  # a loop over the K landmarks; each pass covers all particles
         # (an (N, K) broadcast would be ~20x slower: numpy's inner loop would run over only K = 4)
-        r_hat = np.sqrt((x - lm[k, 0]) ** 2 + (y - lm[k, 1]) ** 2)
+        r_hat = np.hypot(x - lm[k, 0], y - lm[k, 1])  # no overflow of the squares
         sq += (z[k] - r_hat) ** 2
     # The product of K Gaussians as one exp of the summed exponent:
     # prod_k N(z_k; r_k, s^2) = exp(-sum_k (z_k - r_k)^2 / (2 s^2)) / (sqrt(2 pi) s)^K
     # (sq / sigma) / sigma: sigma**2 underflows to 0 for sigma < 1e-162 (0 / 0 = NaN)
-    log_w = -0.5 * (sq / sigma) / sigma - lm.shape[0] * np.log(np.sqrt(2.0 * np.pi) * sigma)
+    with np.errstate(over="ignore"):  # a residual far beyond sigma: log weight -inf, weight 0
+        log_w = -0.5 * (sq / sigma) / sigma - lm.shape[0] * np.log(np.sqrt(2.0 * np.pi) * sigma)
     if np.any(log_w > LOG_FLOAT_MAX):
         raise ValueError(
             f"sensor_noise={sigma!r} is too small: the Gaussian density of the best particle, "
@@ -200,7 +201,8 @@ def low_variance_resample(particles, weights, rng):
         raise ValueError("weights must be finite (no NaN or inf)")
     if np.any(w < 0):
         raise ValueError(f"weights must be non-negative, got minimum {w.min()}")
-    total = w.sum()
+    with np.errstate(over="ignore"):  # weights near 1e308: rescaled below
+        total = w.sum()
     if not total > 0:
         raise ValueError(
             "weights are all zero: cannot resample (every particle has zero likelihood)"

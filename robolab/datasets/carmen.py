@@ -188,9 +188,7 @@ def _scans(path, name, rows, start_angle, angular_resolution, max_range) -> Carm
     return CarmenLaser(scans, laser, robot)
 
 
-def read_carmen(
-    path, *, start_angle=None, angular_resolution=None, max_range=None
-) -> CarmenLog:
+def read_carmen(path, *, start_angle=None, angular_resolution=None, max_range=None) -> CarmenLog:
     """Read a CARMEN log (plain or gzip-compressed).
 
     Parameters
