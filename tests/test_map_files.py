@@ -21,8 +21,15 @@ REAL_MAP = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "oli
 
 
 def _yaml(folder: Path, image: str, **extra) -> Path:
-    meta = {"image": image, "resolution": 0.05, "origin": [0.0, 0.0, 0.0], "negate": 0,
-            "occupied_thresh": 0.65, "free_thresh": 0.196, **extra}
+    meta = {
+        "image": image,
+        "resolution": 0.05,
+        "origin": [0.0, 0.0, 0.0],
+        "negate": 0,
+        "occupied_thresh": 0.65,
+        "free_thresh": 0.196,
+        **extra,
+    }
     path = folder / (Path(image).stem + ".yaml")
     path.write_text(yaml.safe_dump(meta))
     return path

@@ -62,8 +62,9 @@ def test_measurement_probability_is_finite_or_refuses_the_noise(sigma):
         return
     assert np.all(np.isfinite(w)) and np.all(w >= 0)
     # the exact particle's density is the analytic peak (2 pi sigma^2)^(-K/2)
-    np.testing.assert_allclose(w[0], np.exp(-1.5 * np.log(2 * np.pi) - 3 * np.log(sigma)),
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        w[0], np.exp(-1.5 * np.log(2 * np.pi) - 3 * np.log(sigma)), rtol=1e-12
+    )
     assert w[0] >= w[1:].max()
 
 
@@ -134,8 +135,9 @@ def test_p_hit_is_a_density_on_zero_to_zmax_at_any_sigma(sigma):
         return
     assert np.isfinite(at_star) and at_star > 0
     if sigma >= 1e30:  # a Gaussian far wider than [0, z_max] truncates to the uniform 1/z_max
-        np.testing.assert_allclose(bm.p_hit(np.array([0.0, 4.9]), z_star, z_max, sigma),
-                                   1 / z_max, rtol=1e-12)
+        np.testing.assert_allclose(
+            bm.p_hit(np.array([0.0, 4.9]), z_star, z_max, sigma), 1 / z_max, rtol=1e-12
+        )
     if 1e-3 <= sigma <= 1e3:  # it integrates to one
         z = np.linspace(0.0, z_max, 200_001)
         assert np.trapezoid(bm.p_hit(z, z_star, z_max, sigma), z) == pytest.approx(1, rel=1e-4)
@@ -143,13 +145,24 @@ def test_p_hit_is_a_density_on_zero_to_zmax_at_any_sigma(sigma):
 
 @pytest.mark.parametrize("sigma", [1e-3, 1.0, 1e3, 1e30, 1e300])
 def test_beam_model_log_mixture_agrees_with_the_densities(sigma):
-    params = {"z_hit": 0.7, "z_short": 0.1, "z_max": 0.1, "z_rand": 0.1,
-              "sigma_hit": sigma, "lambda_short": 0.5, "max_range": 5.0}
+    params = {
+        "z_hit": 0.7,
+        "z_short": 0.1,
+        "z_max": 0.1,
+        "z_rand": 0.1,
+        "sigma_hit": sigma,
+        "lambda_short": 0.5,
+        "max_range": 5.0,
+    }
     z, z_star = np.array([1.0, 2.0, 5.0]), np.array([1.5, 1.5, 1.5])
     log_p = bm.beam_range_finder_model(z, z_star, params, log=True)
     assert np.isfinite(log_p)
-    mix = (0.7 * bm.p_hit(z, z_star, 5.0, sigma) + 0.1 * bm.p_short(z, z_star, 0.5)
-           + 0.1 * bm.p_max(z, 5.0) + 0.1 * bm.p_rand(z, 5.0))
+    mix = (
+        0.7 * bm.p_hit(z, z_star, 5.0, sigma)
+        + 0.1 * bm.p_short(z, z_star, 0.5)
+        + 0.1 * bm.p_max(z, 5.0)
+        + 0.1 * bm.p_rand(z, 5.0)
+    )
     assert log_p == pytest.approx(np.log(mix).sum(), rel=1e-9)
 
 
@@ -187,15 +200,22 @@ def test_update_landmark_obeys_the_covariance_scaling_law(s):
         return
     np.testing.assert_allclose(mu, mu1, rtol=1e-9)
     np.testing.assert_allclose(cov, cov1 * s, rtol=1e-9)
-    expected = -0.5 * maha0 / s - np.log(2 * np.pi) - 0.5 * (2 * np.log(s) + np.log(np.linalg.det(S0)))
+    expected = (
+        -0.5 * maha0 / s - np.log(2 * np.pi) - 0.5 * (2 * np.log(s) + np.log(np.linalg.det(S0)))
+    )
     if np.isfinite(expected):
         assert ll == pytest.approx(expected, rel=1e-9)
     assert not np.isnan(ll)
 
 
 @pytest.mark.parametrize(
-    "cov", [-np.eye(2), np.array([[1.0, 2.0], [2.0, 1.0]]), np.array([[1.0, 0.5], [0.0, 1.0]]),
-            np.zeros((2, 2))],
+    "cov",
+    [
+        -np.eye(2),
+        np.array([[1.0, 2.0], [2.0, 1.0]]),
+        np.array([[1.0, 0.5], [0.0, 1.0]]),
+        np.zeros((2, 2)),
+    ],
 )
 def test_update_landmark_refuses_a_non_covariance(cov):
     with pytest.raises(ValueError, match="cov"):
@@ -212,14 +232,16 @@ def _state(m=5, k=3):
 @pytest.mark.parametrize("r", [1e160, 1e200, 1e300])
 def test_fastslam_step_refuses_a_range_that_overflows_the_landmark(r):
     with pytest.raises(ValueError, match="observations"):
-        fs.fastslam_step(_state(), [1.0, 0.0], [[r, 0.1, 1]], np.eye(3) * 1e-4,
-                         QT0, np.random.default_rng(0))
+        fs.fastslam_step(
+            _state(), [1.0, 0.0], [[r, 0.1, 1]], np.eye(3) * 1e-4, QT0, np.random.default_rng(0)
+        )
 
 
 @pytest.mark.parametrize("r", [1e-300, 1e-3, 1.0, 1e3, 1e100])
 def test_fastslam_step_initializes_landmarks_at_any_representable_range(r):
-    out = fs.fastslam_step(_state(), [0.0, 0.0], [[r, 0.1, 1]], np.eye(3) * 1e-12,
-                           QT0, np.random.default_rng(0))
+    out = fs.fastslam_step(
+        _state(), [0.0, 0.0], [[r, 0.1, 1]], np.eye(3) * 1e-12, QT0, np.random.default_rng(0)
+    )
     assert all(np.all(np.isfinite(out[k])) for k in ("poses", "means", "covs", "weights"))
     assert out["seen"][:, 1].all()
     # the mean is the observation's inverse h at the particle's pose
@@ -229,18 +251,34 @@ def test_fastslam_step_initializes_landmarks_at_any_representable_range(r):
 
 
 def test_fastslam_step_with_a_tiny_qt_stays_finite():
-    state = fs.fastslam_step(_state(), [0.0, 0.0], [[2.0, 0.1, 0]], np.eye(3) * 1e-12,
-                             np.eye(2) * 1e-300, np.random.default_rng(0))
-    out = fs.fastslam_step(state, [0.0, 0.0], [[2.0, 0.1, 0]], np.eye(3) * 1e-12,
-                           np.eye(2) * 1e-300, np.random.default_rng(1))
+    state = fs.fastslam_step(
+        _state(),
+        [0.0, 0.0],
+        [[2.0, 0.1, 0]],
+        np.eye(3) * 1e-12,
+        np.eye(2) * 1e-300,
+        np.random.default_rng(0),
+    )
+    out = fs.fastslam_step(
+        state,
+        [0.0, 0.0],
+        [[2.0, 0.1, 0]],
+        np.eye(3) * 1e-12,
+        np.eye(2) * 1e-300,
+        np.random.default_rng(1),
+    )
     assert all(np.all(np.isfinite(out[k])) for k in ("poses", "means", "covs", "weights"))
 
 
 # -- EKF mapping ----------------------------------------------------------------------------
 @pytest.mark.parametrize("bad", ["P", "Q", "R"])
 def test_ekf_mapping_step_refuses_an_indefinite_covariance(bad):
-    ekf = {"x": np.array([10.0, 10.0, 0.0]), "P": np.eye(3) * 0.01, "Q": np.eye(3) * 1e-3,
-           "R": np.eye(36) * 0.04}
+    ekf = {
+        "x": np.array([10.0, 10.0, 0.0]),
+        "P": np.eye(3) * 0.01,
+        "Q": np.eye(3) * 1e-3,
+        "R": np.eye(36) * 0.04,
+    }
     ekf[bad] = -np.eye(ekf[bad].shape[0])
     with pytest.raises(ValueError, match=f"ekf {bad}"):
         ekf_mapping_step(ekf, np.zeros((40, 40)), 1.0, 0.0, np.full(36, 5.0), 0.1)
