@@ -24,7 +24,8 @@ n r_1 .. r_n m e_1 .. e_m timestamp host logger_timestamp``
     A parameter (kept as text).
 
 Other lines (``#`` comments, ``NEFF``, ``SYNC``, ...) are skipped. Times are the
-``timestamp`` field (seconds), not the logger's.
+``timestamp`` field (seconds), not the logger's; messages keep the log's order (the
+Intel log has four scans whose stamps step back).
 """
 
 from __future__ import annotations
