@@ -95,6 +95,20 @@ def test_low_variance_resample_of_equal_huge_weights_takes_each_particle_once():
     np.testing.assert_array_equal(np.sort(out[:, 0]), p[:, 0])
 
 
+# -- Bayes filter and normalization ----------------------------------------------------
+@pytest.mark.parametrize("scale", [5e-324, 1e-310, 1e-300, 1e-100, 1.0, 1e100, 1e300, 8e307])
+def test_bayes_posteriors_and_normalize_depend_only_on_likelihood_ratios(scale):
+    from solutions import bayes, demo
+
+    ratios = np.array([1.0, 2.0, 0.0, 1.0])
+    prior = np.array([0.1, 0.2, 0.3, 0.4])
+    ref = ratios * prior / np.sum(ratios * prior)
+    like = ratios * scale  # the sum overflows at 8e307, the products underflow below 1e-300
+    np.testing.assert_allclose(bayes.bayes_posterior(like, prior), ref, rtol=1e-12)
+    np.testing.assert_allclose(bayes.bayes_filter_step(prior, np.eye(4), like), ref, rtol=1e-12)
+    np.testing.assert_allclose(demo.normalize(like), ratios / ratios.sum(), rtol=1e-12)
+
+
 # -- mcl --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("epsilon", MAGNITUDES)
 @pytest.mark.parametrize("k", [1, 2, 100, 10_000])
