@@ -138,6 +138,32 @@ def test_normalize_log_weights_sums_to_one_at_any_spread(spread):
     assert np.all(np.isfinite(w)) and np.isclose(w.sum(), 1.0)
 
 
+@pytest.mark.parametrize("sigma", [5e-324, 1e-310, 1e-300, 1e-30, 1e-3, 1.0, 1e30, 1e300])
+@pytest.mark.parametrize("max_dist", [1e-300, 1.0, 1e300])
+def test_likelihood_field_model_is_finite_or_refuses_sigma(sigma, max_dist):
+    data = np.zeros((40, 40))
+    data[:, 30] = 1.0
+    grid = OccupancyGrid(data, 0.05)
+    scan = {
+        "ranges": np.array([1.0, 1.2]),
+        "angles": np.array([0.0, 0.3]),
+        "range_min": 0.1,
+        "range_max": 5.0,
+    }
+    try:
+        field = mcl.likelihood_field(grid, sigma, max_dist)
+    except ValueError as exc:
+        assert "sigma_hit" in str(exc) and sigma < 1e-300
+        return
+    assert np.all(np.isfinite(field["likelihood"]))
+    out = mcl.likelihood_field_model(
+        scan, np.array([[0.5, 1.0, 0.0], [0.3, 1.0, 0.1]]), field, mcl.DEFAULT_PARAMS
+    )
+    assert np.all(np.isfinite(out))
+    w = mcl.normalize_log_weights(out)
+    assert np.all(np.isfinite(w)) and np.isclose(w.sum(), 1.0)
+
+
 # -- beam model ----------------------------------------------------------------------------
 @pytest.mark.parametrize("sigma", MAGNITUDES)
 def test_p_hit_is_a_density_on_zero_to_zmax_at_any_sigma(sigma):
