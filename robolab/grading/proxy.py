@@ -54,8 +54,8 @@ __all__ = [
     "open_submission",
 ]
 
-#: Largest message accepted from a worker (a result, in pickled form).
-MAX_MESSAGE_BYTES = 256 * 2**20
+#: Largest message accepted from a worker (a result, in pickled form): the codec's limit.
+MAX_MESSAGE_BYTES = codec.LIMITS.max_bytes
 #: Seconds a worker may take to start and isolate itself (before student code runs).
 STARTUP_SECONDS = 30.0
 #: How often a waiting grader checks the worker's CPU time and liveness.
@@ -660,7 +660,7 @@ class SubmissionProxy:
         except codec.CodecError as exc:
             self._discard()
             raise StudentCodeError(
-                f"{name}() returned a value that is not plain data: {exc}", kind="result"
+                f"{name}() returned a value the grader does not accept: {exc}", kind="result"
             ) from None
         except (StudentCodeError, BrokenPipeError) as exc:
             self._discard()
