@@ -184,5 +184,15 @@ class GroupClock:
                 os.kill(self.leader, signal.SIGCONT)
             except (ProcessLookupError, PermissionError):
                 pass
+        _wait_dead([m.pid for m in others if m.state != "Z"])
         self._seen_pid = last_pid()
         return used + sum(m.cpu_seconds for m in others), killed
+
+
+def _wait_dead(pids: list[int], timeout: float = 2.0) -> None:
+    """Wait (briefly) until killed processes are zombies or gone: SIGKILL is asynchronous."""
+    deadline = time.monotonic() + timeout
+    while pids and time.monotonic() < deadline:
+        pids = [p for p in pids if (f := _stat(p)) is not None and f[0] not in (b"Z", b"X")]
+        if pids:
+            time.sleep(0.002)

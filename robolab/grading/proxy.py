@@ -312,6 +312,7 @@ class _Worker:
         self.uid = sandbox.worker_uid(self.process.pid) if self.plan.drop_privileges else None
         #: CPU time of the worker's whole process group, and the sweep after each call.
         self.clock = processes.GroupClock(self.process.pid)
+        self.clock.start_call()
         self._finalizer = weakref.finalize(
             self, _reap, self.process, self.uid, (self.request_w, self.response_r), self.base
         )
@@ -332,6 +333,8 @@ class _Worker:
     # -- messages --
 
     def send(self, message: tuple, deadline: float) -> None:
+        """Send a request; CPU time and new processes count against it from now on."""
+        self.clock.start_call()  # before the worker can act on the request
         payload = pickle.dumps(message, protocol=5)
         frame = memoryview(HEADER.pack(len(payload)) + payload)
         poller = select.poll()
@@ -350,7 +353,6 @@ class _Worker:
 
     def receive(self, deadline: float, cpu_limit: float | None) -> Any:
         """The next message, decoded with the codec, within the wall and CPU limits."""
-        self.clock.start_call()
         buffer = bytearray()
         size: int | None = None
         poller = select.poll()

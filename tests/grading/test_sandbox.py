@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 import robolab
-from robolab.grading import proxy as proxy_module
 from robolab.grading import processes, sandbox
+from robolab.grading import proxy as proxy_module
 from robolab.grading.proxy import IsolationWarning, StudentCodeError, WorkerTimeout, open_submission
 from tests.grading import TEST_LIMITS, write_notebook
 
