@@ -798,6 +798,8 @@ def _warn_if_weak(report: sandbox.SandboxReport) -> None:
         problems.append("submissions can open network connections")
     if not report.process_limit:
         problems.append("the worker runs as root, so the process limit does not hold")
+    if not report.protects_processes:
+        problems.append("submissions can signal or reconfigure other processes of the grader")
     for problem in problems:
         if problem in _warned:
             continue

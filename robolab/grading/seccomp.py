@@ -60,36 +60,51 @@ _JGE_K = 0x35
 _JSET_K = 0x45
 _RET_K = 0x06
 
-#: (audit arch, {name: number}) per machine.
-_ARCH = {
-    "x86_64": (
-        0xC000003E,
-        dict(
-            kill=62, tkill=200, tgkill=234, rt_sigqueueinfo=129, rt_tgsigqueueinfo=297,
-            ptrace=101, process_vm_readv=310, process_vm_writev=311, prlimit64=302,
-            setpriority=141, ioprio_set=251, sched_setparam=142, sched_setscheduler=144,
-            sched_setaffinity=203, sched_setattr=314, pidfd_open=434, pidfd_send_signal=424,
-            pidfd_getfd=438, socket=41, setsid=112, setpgid=109, io_uring_setup=425,
-            io_uring_enter=426, io_uring_register=427, perf_event_open=298, bpf=321, kcmp=312,
-            process_madvise=440, unshare=272, setns=308, keyctl=250, add_key=248,
-            request_key=249, migrate_pages=256, move_pages=279, prctl=157, clone=56, clone3=435,
-        ),
-    ),
-    "aarch64": (
-        0xC00000B7,
-        dict(
-            kill=129, tkill=130, tgkill=131, rt_sigqueueinfo=138, rt_tgsigqueueinfo=240,
-            ptrace=117, process_vm_readv=270, process_vm_writev=271, prlimit64=261,
-            setpriority=140, ioprio_set=30, sched_setparam=118, sched_setscheduler=119,
-            sched_setaffinity=122, sched_setattr=274, pidfd_open=434, pidfd_send_signal=424,
-            pidfd_getfd=438, socket=198, setsid=157, setpgid=154, io_uring_setup=425,
-            io_uring_enter=426, io_uring_register=427, perf_event_open=241, bpf=280, kcmp=272,
-            process_madvise=440, unshare=97, setns=268, keyctl=219, add_key=217,
-            request_key=218, migrate_pages=238, move_pages=239, prctl=167, clone=220, clone3=435,
-        ),
-    ),
-}  # fmt: skip
-_ARCH["arm64"] = _ARCH["aarch64"]
+#: System call numbers: name -> (x86_64, aarch64), from <asm/unistd_64.h> and
+#: <asm-generic/unistd.h>.
+_NUMBERS = {
+    "kill": (62, 129),
+    "tkill": (200, 130),
+    "tgkill": (234, 131),
+    "rt_sigqueueinfo": (129, 138),
+    "rt_tgsigqueueinfo": (297, 240),
+    "ptrace": (101, 117),
+    "process_vm_readv": (310, 270),
+    "process_vm_writev": (311, 271),
+    "prlimit64": (302, 261),
+    "setpriority": (141, 140),
+    "ioprio_set": (251, 30),
+    "sched_setparam": (142, 118),
+    "sched_setscheduler": (144, 119),
+    "sched_setaffinity": (203, 122),
+    "sched_setattr": (314, 274),
+    "pidfd_open": (434, 434),
+    "pidfd_send_signal": (424, 424),
+    "pidfd_getfd": (438, 438),
+    "socket": (41, 198),
+    "setsid": (112, 157),
+    "setpgid": (109, 154),
+    "io_uring_setup": (425, 425),
+    "io_uring_enter": (426, 426),
+    "io_uring_register": (427, 427),
+    "perf_event_open": (298, 241),
+    "bpf": (321, 280),
+    "kcmp": (312, 272),
+    "process_madvise": (440, 440),
+    "unshare": (272, 97),
+    "setns": (308, 268),
+    "keyctl": (250, 219),
+    "add_key": (248, 217),
+    "request_key": (249, 218),
+    "migrate_pages": (256, 238),
+    "move_pages": (279, 239),
+    "prctl": (157, 167),
+    "clone": (56, 220),
+    "clone3": (435, 435),
+}
+#: machine -> (audit arch, index into the _NUMBERS pairs).
+_ARCH = {"x86_64": (0xC000003E, 0), "aarch64": (0xC00000B7, 1), "arm64": (0xC00000B7, 1)}
+
 
 _DENIED = (
     "ptrace process_vm_readv process_vm_writev pidfd_open pidfd_send_signal pidfd_getfd kcmp "
@@ -151,7 +166,8 @@ def build(machine: str, own_group: int | None) -> bytes:
         The worker's process group (its leader's pid) when signals must be
         confined by the filter; None to leave signals to the kernel.
     """
-    arch, nr = _ARCH[machine]
+    arch, column = _ARCH[machine]
+    nr = {name: numbers[column] for name, numbers in _NUMBERS.items()}
     p = _Program()
     p.op(_LD_W_ABS, 4)  # seccomp_data.arch
     p.op(_JEQ_K, arch, None, "kill")

@@ -134,6 +134,7 @@ def test_the_answers_stay_unreadable(attacks):
 
 def test_a_daemon_does_not_outlive_its_call(attacks):
     _, results = attacks
+    assert not results["detached"], "setsid must fail"
     assert not results["daemon_alive"] and not results["daemon_alive_after_close"]
 
 

@@ -24,6 +24,7 @@ sys.path.insert(0, str(ROOT))
 from robolab.grading import sandbox  # noqa: E402
 from robolab.grading.proxy import StudentCodeError, open_submission  # noqa: E402
 from tests.grading import TEST_LIMITS, write_notebook  # noqa: E402
+from tests.grading.test_sandbox import PROBES  # noqa: E402 - daemon() comes from there
 
 ATTACKS = """
 import os, resource, socket, time
@@ -55,23 +56,6 @@ def unix_connect(path):
 def read(path):
     with open(path, "rb") as f:
         return f.read(16)
-
-def daemon():
-    r, w = os.pipe()
-    pid = os.fork()
-    if pid == 0:
-        try:
-            os.setsid()
-        except OSError:
-            pass
-        grandchild = os.fork()
-        if grandchild == 0:
-            time.sleep(120)
-            os._exit(0)
-        os.write(w, str(grandchild).encode())
-        os._exit(0)
-    os.waitpid(pid, 0)
-    return int(os.read(r, 100))
 
 def fill_scratch(n):
     block = b"x" * 2**20
@@ -114,7 +98,7 @@ def main(mode: str, out: Path) -> None:
 
         sandbox.plan_sandbox = plan
     folder = Path(tempfile.mkdtemp(prefix="robolab-unprivileged-"))
-    notebook = write_notebook(folder / "attacks.ipynb", ATTACKS)
+    notebook = write_notebook(folder / "attacks.ipynb", PROBES, ATTACKS)
     udp4 = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     udp4.bind(("127.0.0.1", 0))
     udp4.setblocking(False)
@@ -138,7 +122,7 @@ def main(mode: str, out: Path) -> None:
         results["udp6"] = outcome(sub.udp, socket.AF_INET6, "::1", udp4.getsockname()[1])
         results["unix"] = outcome(sub.unix_connect, str(folder / "grader.sock"))
         results["solution"] = outcome(sub.read, str(ROOT / "solutions" / "demo.py"))
-        grandchild = sub.daemon()
+        grandchild, results["detached"] = sub.daemon()
         time.sleep(0.5)
         results["daemon_alive"] = alive(grandchild)
         try:
