@@ -70,21 +70,29 @@ def last_pid() -> int:
         return -1
 
 
-def group_members(pgid: int) -> list[Member]:
-    """Every process whose process group is ``pgid`` (a scan of ``/proc``)."""
+#: Most new pids checked one by one; beyond that (or after a wrap) the whole of /proc is read.
+_MAX_RANGE = 4096
+
+
+def group_members(pgid: int, pids: range | None = None) -> list[Member]:
+    """Every process whose process group is ``pgid``, among ``pids`` (default: all of /proc)."""
+    candidates = (
+        (int(e.name) for e in os.scandir("/proc") if e.name.isdigit()) if pids is None else pids
+    )
     found = []
-    for entry in os.scandir("/proc"):
-        if not entry.name.isdigit():
-            continue
-        fields = _stat(int(entry.name))
+    for pid in candidates:
+        fields = _stat(pid)
         if fields is not None and len(fields) > 19 and int(fields[2]) == pgid:
-            found.append(_member(int(entry.name), fields))
+            found.append(_member(pid, fields))
     return found
 
 
 @dataclass
 class GroupClock:
     """CPU time of a worker's process group, charged call by call.
+
+    The accounting runs from the end of one call to the end of the next, so
+    what a student's thread does between calls counts against the next call.
 
     Attributes
     ----------
@@ -104,8 +112,11 @@ class GroupClock:
     _children_seen: float = 0.0
     _children: float = 0.0
     _members: float = 0.0
-    _seen_pid: int = -2
+    _swept_pid: int = -1
     _scanned: float = 0.0
+
+    def __post_init__(self) -> None:
+        self._open()
 
     def _leader(self) -> Member | None:
         fields = _stat(self.leader)
@@ -123,45 +134,56 @@ class GroupClock:
         self._children_seen = now.children_seconds
         return now.own_seconds
 
-    def start_call(self) -> None:
-        """Mark the start of a call: from now on, CPU time counts against it."""
+    def _open(self) -> None:
+        """Start charging the next call: what the group uses from now on is its."""
         self._own_base = self._observe()
         self._children = self._members = 0.0
-        self._seen_pid = last_pid()
+        self._swept_pid = last_pid()
+
+    def start_call(self) -> None:
+        """A request is about to be sent (members are rescanned from now on)."""
         self._scanned = time.monotonic()
 
+    def _new_pids(self) -> range | None:
+        """The pids allocated since the last sweep, None when unknown; empty when none were."""
+        now = last_pid()
+        if now < 0 or self._swept_pid < 0 or not 0 <= now - self._swept_pid <= _MAX_RANGE:
+            return None
+        return range(self._swept_pid + 1, now + 1)
+
     def _others(self) -> list[Member]:
+        # Every member but the leader was killed at the last sweep, so only processes
+        # created since then can be new members (charged zombies are left out).
+        pids = self._new_pids()
+        if pids is not None and not pids:
+            return []
         return [
             m
-            for m in group_members(self.leader)
+            for m in group_members(self.leader, pids)
             if m.pid != self.leader and (m.pid, m.start) not in self.charged
         ]
 
     def used(self, *, scan_every: float = 0.5) -> float:
-        """CPU seconds the group used since :meth:`start_call`.
-
-        Other members are rescanned at most every ``scan_every`` seconds, and
-        only when a process was created on the machine since the call began.
-        """
+        """CPU seconds the group used in this call (members rescanned every ``scan_every`` s)."""
         own = self._observe() - self._own_base
         now = time.monotonic()
         if now - self._scanned >= scan_every:
             self._scanned = now
-            pid = last_pid()
-            if pid != self._seen_pid or pid < 0:
-                self._members = sum(m.cpu_seconds for m in self._others())
+            self._members = sum(m.cpu_seconds for m in self._others())
         return own + self._children + self._members
 
     def sweep(self) -> tuple[float, int]:
-        """Charge and kill every member but the leader; return (CPU seconds of the call, killed).
+        """End the call: charge and kill every member but the leader.
 
-        The group is stopped first, so nothing forks while it is scanned;
-        the leader is continued afterwards.
+        Returns the CPU seconds of the call and how many processes were killed.
+        The group is stopped first, so nothing forks while it is scanned; the
+        leader is continued afterwards.
         """
         used = self._observe() - self._own_base + self._children
-        pid = last_pid()
-        if pid == self._seen_pid and pid >= 0:
-            return used, 0  # no process was created anywhere since the call began
+        pids = self._new_pids()
+        if pids is not None and not pids:
+            self._open()
+            return used, 0  # no process was created anywhere since the last sweep
         try:
             os.killpg(self.leader, signal.SIGSTOP)
         except (ProcessLookupError, PermissionError):
@@ -185,7 +207,7 @@ class GroupClock:
             except (ProcessLookupError, PermissionError):
                 pass
         _wait_dead([m.pid for m in others if m.state != "Z"])
-        self._seen_pid = last_pid()
+        self._open()
         return used + sum(m.cpu_seconds for m in others), killed
 
 

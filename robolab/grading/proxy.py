@@ -312,7 +312,6 @@ class _Worker:
         self.uid = sandbox.worker_uid(self.process.pid) if self.plan.drop_privileges else None
         #: CPU time of the worker's whole process group, and the sweep after each call.
         self.clock = processes.GroupClock(self.process.pid)
-        self.clock.start_call()
         self._finalizer = weakref.finalize(
             self, _reap, self.process, self.uid, (self.request_w, self.response_r), self.base
         )
