@@ -326,8 +326,6 @@ class _Worker:
         #: Wall-time budget of the current request (for the timeout message).
         self.wall_seconds = limits.wall_seconds
         self.calls = 0
-        #: Processes still running when a call returned, killed by the sweep.
-        self.killed_after_call = 0
 
     # -- messages --
 
@@ -382,7 +380,7 @@ class _Worker:
 
     def _end_call(self, cpu_limit: float | None) -> None:
         """Kill what the call started, charging its CPU time; check the scratch space."""
-        cpu, killed = self.clock.sweep()
+        cpu, _ = self.clock.sweep()
         if cpu_limit is not None and cpu > cpu_limit:
             self.kill()
             raise WorkerTimeout(
@@ -390,8 +388,6 @@ class _Worker:
                 f"(with the processes it started: {cpu:.1f} s)",
                 kind="timeout",
             )
-        if killed:
-            self.killed_after_call += killed
         if self.report is not None and self.report.scratch != "tmpfs":
             used = sandbox.directory_bytes(self.plan.workdir, sandbox.WORKDIR_BYTES)
             if used > sandbox.WORKDIR_BYTES:
