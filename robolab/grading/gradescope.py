@@ -25,6 +25,7 @@ import zipfile
 from pathlib import Path
 
 from robolab.grading.labs import LabError, find_lab, lab_of_notebook, project_root
+from robolab.grading.protection import require_answers_protected
 from robolab.grading.report import render_feedback
 from robolab.grading.runner import DEFAULT_TIMEOUT, SubmissionResult, grade_submission
 
@@ -166,6 +167,7 @@ def run(
     timeout: float = DEFAULT_TIMEOUT,
 ) -> dict:
     """Grade the submitted notebook and write ``results``; return what was written."""
+    require_answers_protected()  # sandbox hook: never grade where workers can read the answers
     root = root or project_root()
     try:
         notebook = find_submission(submission, lab)

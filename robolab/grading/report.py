@@ -44,6 +44,7 @@ def gradebook_rows(results: Sequence[SubmissionResult]) -> list[dict]:
             "errors": list(r.errors),
             "load_problems": len(r.problems),
             "seconds": round(r.seconds, 2),
+            "isolation": r.isolation,
         }
         for r in results
     ]
@@ -60,9 +61,11 @@ def write_gradebook(results: Sequence[SubmissionResult], out: Path) -> tuple[Pat
     json_path, csv_path = out / "gradebook.json", out / "gradebook.csv"
     json_path.write_text(json.dumps(rows, indent=1) + "\n")
     exercises = _exercise_columns(results)
+    # Only when the sandbox left something unprotected (then loudly, on every row).
+    isolation = ["isolation"] if any(r.isolation for r in results) else []
     with csv_path.open("w", newline="") as f:
         w = csv.writer(f)
-        w.writerow(["submission", "lab", *exercises, "total", "max", "errors"])
+        w.writerow(["submission", "lab", *exercises, "total", "max", "errors", *isolation])
         for row in rows:
             per = [
                 _pts(row["exercises"][e]["earned"]) if e in row["exercises"] else ""
@@ -76,6 +79,7 @@ def write_gradebook(results: Sequence[SubmissionResult], out: Path) -> tuple[Pat
                     _pts(row["total"]),
                     _pts(row["max"]),
                     "; ".join(row["errors"]),
+                    *([row["isolation"]] if isolation else []),
                 ]
             )
     return csv_path, json_path

@@ -76,6 +76,9 @@ class SubmissionResult:
     errors: list[str] = field(default_factory=list)
     fatal: bool = False
     seconds: float = 0.0
+    #: What the machine's sandbox failed to protect ("" when everything held), from
+    #: :func:`robolab.grading.protection.describe_protection`.
+    isolation: str = ""
 
     def exercise_scores(self) -> dict[str, tuple[float, float]]:
         """``{exercise: (earned, possible)}`` in the order the tests run."""
@@ -273,6 +276,10 @@ def grade_all(
     root = root or project_root()
     paths = [Path(p) for p in paths]
     names = submission_names(paths)
+    from robolab.grading.protection import describe_protection  # sandbox hook: once per batch
+
+    protection = describe_protection()
+    protection.announce()
     results: list[SubmissionResult | None] = [None] * len(paths)
     with (
         ThreadPoolExecutor(max_workers=jobs) as pool,
@@ -285,4 +292,7 @@ def grade_all(
         for future in as_completed(futures):
             results[futures[future]] = future.result()
             bar.update(1)
+    for r in results:
+        if r is not None:
+            r.isolation = protection.column
     return [r for r in results if r is not None]

@@ -175,7 +175,8 @@ def test_cpu_time_limit(tmp_path):
         start = time.monotonic()
         with pytest.raises(WorkerTimeout, match="CPU time"):
             sub.spin()
-        assert time.monotonic() - start < 5
+        # The CPU limit stopped it, long before the wall limit (however loaded the machine).
+        assert time.monotonic() - start < limits.wall_seconds
 
 
 def test_output_is_captured_and_bounded(proxy):
