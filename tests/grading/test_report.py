@@ -83,7 +83,7 @@ def test_feedback_says_what_failed_in_words():
     # a stub is named once, not as a list of failing checks
     assert "Not implemented yet: `mean_pose` still raises NotImplementedError." in text
     assert "cell 9" not in text
-    assert "cell 4 (syntax): invalid syntax (line 2)" in text
+    assert "- `cell 4` (`syntax`):" in text and "invalid syntax (line 2)" in text
     assert "nodeid" not in text and "test_demo.py" not in text
 
 
@@ -100,15 +100,27 @@ def test_gradebook_has_a_row_per_submission(tmp_path):
     assert [r["submission"] for r in rows] == ["alice", "bob", "carol"]
     assert list(rows[0]) == [
         "submission",
+        "path",
+        "student_id",
+        "student_name",
+        "email",
         "lab",
         "normalize",
         "wrap",
         "mean_pose",
         "bayes_posterior",
+        "autograded",
         "total",
         "max",
+        "submitted",
+        "days_late",
+        "late_penalty_percent",
+        "final",
+        "overrides",
+        "flags",
         "errors",
     ]
+    assert rows[0]["path"] == "subs/alice.ipynb" and data_path_is_in_json(tmp_path)
     assert (rows[0]["wrap"], rows[0]["bayes_posterior"], rows[0]["total"], rows[0]["max"]) == (
         "20",
         "",
@@ -121,6 +133,14 @@ def test_gradebook_has_a_row_per_submission(tmp_path):
     data = json.loads(json_path.read_text())
     assert data[0]["exercises"]["wrap"] == {"earned": 20, "possible": 30}
     assert data[0]["load_problems"] == 1 and data[2]["errors"]
+
+
+def data_path_is_in_json(out: Path) -> bool:
+    return [r["path"] for r in json.loads((out / "gradebook.json").read_text())] == [
+        "subs/alice.ipynb",
+        "subs/bob.ipynb",
+        "subs/carol.ipynb",
+    ]
 
 
 def test_feedback_files_are_named_after_submissions(tmp_path):
