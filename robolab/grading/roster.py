@@ -46,6 +46,10 @@ class Student:
     sis_login_id: str = ""
 
 
+def _key(header: str) -> str:
+    return "_".join(header.strip().lower().split())
+
+
 def read_csv(
     path: Path, required: Sequence[str], aliases: dict[str, str] | None = None
 ) -> list[dict]:
@@ -61,7 +65,7 @@ def read_csv(
         with open(path, newline="", encoding="utf-8-sig") as f:
             reader = csv.DictReader(f)
             header = {
-                h: aliases.get(h.strip().lower(), h.strip().lower())
+                h: aliases.get(_key(h), _key(h))
                 for h in reader.fieldnames or []
             }
             rows = [

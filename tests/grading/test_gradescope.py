@@ -40,7 +40,15 @@ def autograder(bundle, tmp_path) -> Path:
     assert (home / "source" / "robolab" / "grading" / "runner.py").is_file()
     shutil.rmtree(home / "source" / "robolab")
     (home / "source" / "robolab").symlink_to(REPO / "robolab")
+    protect(home / "source")
     return home
+
+
+def protect(source: Path) -> None:
+    """What setup.sh does to the answers: readable by their owner only."""
+    for top in (source / "solutions", source / "tests"):
+        for path in [top, *top.rglob("*")]:
+            path.chmod(0o700 if path.is_dir() else 0o600)
 
 
 def run_autograder(home: Path) -> subprocess.CompletedProcess:
@@ -88,7 +96,7 @@ def test_scripts_are_valid_bash(autograder):
         )
         assert proc.returncode == 0, proc.stderr
     setup = (autograder / "source" / "setup.sh").read_text()
-    assert "pip install" in setup and "-e /autograder/source" in setup
+    assert "pip install" in setup and '-e "$SOURCE" "pytest' in setup
 
 
 def test_run_autograder_grades_the_submission(autograder):
@@ -112,6 +120,18 @@ def test_run_autograder_grades_the_submission(autograder):
     assert set(first) >= {"name", "score", "max_score", "output"}
     assert first["name"].startswith("normalize: ")
     assert "Score: **101 / 101**" in results["output"]
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="file modes protect the answers only from a root grader")
+def test_run_autograder_refuses_when_the_answers_are_readable(autograder):
+    shutil.copy(CORRECT, autograder / "submission" / "my_work.ipynb")
+    (autograder / "source" / "solutions" / "demo.py").chmod(0o644)
+    (autograder / "source" / "solutions").chmod(0o755)
+    proc = run_autograder(autograder)
+    assert proc.returncode != 0 and "refusing to grade" in proc.stderr
+    results = json.loads((autograder / "results" / "results.json").read_text())
+    assert results["score"] == 0 and results["tests"] == []
+    assert "not set up safely" in results["output"]
 
 
 def test_run_autograder_without_a_notebook_scores_zero(autograder):
