@@ -243,28 +243,26 @@ def assign_labs(
         top, n = counted.most_common(1)[0]
         if n * 2 > sum(counted.values()) and top in known:
             majority = top
+    total = sum(counted.values())
     out = []
     for rel, d in zip(relative_paths(paths), declared, strict=True):
         hint = _path_hint(rel, known)
-        expected, why = (
-            (hint, "its file name says so") if hint else (majority, "most of the batch is")
-        )
+        expected = hint or majority
         if expected is None or d == expected:
             out.append((d, []))
             continue
-        said = f"says lab {d!r}" if d else "names no lab"
-        out.append(
-            (
-                expected,
-                [
-                    f"lab mismatch: the notebook {said} but {why} {expected!r}; graded as "
-                    f"{expected!r} (regrade it with --lab {d} if {d!r} is right)"
-                    if d
-                    else f"lab missing: the notebook {said}; graded as {expected!r} ({why} "
-                    f"{expected!r})"
-                ],
-            )
+        why = (
+            f"its file name names lab {expected!r}"
+            if hint
+            else f"most of the batch ({counted[expected]} of {total}) is lab {expected!r}"
         )
+        flag = (
+            f"lab mismatch: the notebook says lab {d!r} but {why}; graded as {expected!r} "
+            f"(if {d!r} is right, grade it alone with --lab {d})"
+            if d
+            else f"lab missing: the notebook names no lab; graded as {expected!r} ({why})"
+        )
+        out.append((expected, [flag]))
     return out
 
 

@@ -64,10 +64,7 @@ def read_csv(
     try:
         with open(path, newline="", encoding="utf-8-sig") as f:
             reader = csv.DictReader(f)
-            header = {
-                h: aliases.get(_key(h), _key(h))
-                for h in reader.fieldnames or []
-            }
+            header = {h: aliases.get(_key(h), _key(h)) for h in reader.fieldnames or []}
             rows = [
                 {header[k]: (v or "").strip() for k, v in row.items() if k in header}
                 for row in reader

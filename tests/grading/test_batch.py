@@ -170,7 +170,15 @@ def test_interrupt_leaves_a_valid_partial_gradebook_and_resumes(tmp_path, projec
     fast = [copy(SUBMISSIONS / n, subs / n) for n in ("correct.ipynb", "partial.ipynb")]
     hang = _hanging(subs / "zz_hangs.ipynb")
     out = tmp_path / "grades"
-    cmd = [sys.executable, "-m", "robolab.cli", "grade", *map(str, [*fast, hang]), "--out", str(out)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "robolab.cli",
+        "grade",
+        *map(str, [*fast, hang]),
+        "--out",
+        str(out),
+    ]
     env = dict(os.environ, ROBOLAB_ROOT=str(project))
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60

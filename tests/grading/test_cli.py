@@ -123,7 +123,9 @@ def test_solve_never_writes_over_its_input_or_a_stub(tmp_path):
     shutil.copy(STUB, stubs / "demo.ipynb")
     before = (stubs / "demo.ipynb").read_bytes()
     assert_user_error(robolab("solve", stubs, "-o", stubs), "refusing")
-    assert_user_error(robolab("solve", stubs / "demo.ipynb", "-o", stubs / "demo.ipynb"), "refusing")
+    assert_user_error(
+        robolab("solve", stubs / "demo.ipynb", "-o", stubs / "demo.ipynb"), "refusing"
+    )
     other = tmp_path / "other.ipynb"
     shutil.copy(STUB, other)  # a stub notebook elsewhere is not overwritten either
     assert_user_error(robolab("solve", stubs / "demo.ipynb", "-o", other), "stub")

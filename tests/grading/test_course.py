@@ -210,7 +210,10 @@ def course(tmp_path, monkeypatch):
         "s2,Alan Turing,alan@x.edu,alan_*,B\n"
         "s3,Grace Hopper,grace@x.edu,grace_*,A\n",
     )
-    write(tmp_path / "overrides.csv", "student,exercise,points,comment\ns2,mean_pose,15,partial credit\n")
+    write(
+        tmp_path / "overrides.csv",
+        "student,exercise,points,comment\ns2,mean_pose,15,partial credit\n",
+    )
     return tmp_path, sorted(subs.glob("*.ipynb"))
 
 
@@ -234,12 +237,21 @@ def test_a_course_end_to_end(course, capsys):
     assert "submissions without a student: 1 (mallory_demo)" in printed
     assert "students without a submission: 1 (s3 Grace Hopper)" in printed
     feedback = (out / "feedback" / "alan_demo.md").read_text()
-    assert "partial credit" in feedback and "2 day(s) late" in feedback and "Final: **60" in feedback
+    assert (
+        "partial credit" in feedback and "2 day(s) late" in feedback and "Final: **60" in feedback
+    )
 
     canvas = list(csv.DictReader((out / "canvas.csv").open()))
-    assert [(r["SIS User ID"], r["Demo"]) for r in canvas] == [("s1", "100"), ("s2", "60"), ("s3", "")]
+    assert [(r["SIS User ID"], r["Demo"]) for r in canvas] == [
+        ("s1", "100"),
+        ("s2", "60"),
+        ("s3", ""),
+    ]
     moodle = list(csv.DictReader((out / "moodle.csv").open()))
-    assert [(r["Email address"], r["Demo"]) for r in moodle][:2] == [("ada@x.edu", "100"), ("alan@x.edu", "60")]
+    assert [(r["Email address"], r["Demo"]) for r in moodle][:2] == [
+        ("ada@x.edu", "100"),
+        ("alan@x.edu", "60"),
+    ]
 
     # a regrade (alan resubmits the same work under the same name) without --overrides
     # keeps the manual grade: the batch kept its copy of the overrides

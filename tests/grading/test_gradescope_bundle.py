@@ -37,18 +37,38 @@ DUE = "2099-03-01T23:59:00-08:00"  # not yet passed: after_due_date stays hidden
 
 #: The documented keys of results.json and of one test in it.
 RESULT_KEYS = {
-    "score", "execution_time", "output", "output_format", "test_output_format",
-    "test_name_format", "visibility", "stdout_visibility", "extra_data", "tests", "leaderboard",
+    "score",
+    "execution_time",
+    "output",
+    "output_format",
+    "test_output_format",
+    "test_name_format",
+    "visibility",
+    "stdout_visibility",
+    "extra_data",
+    "tests",
+    "leaderboard",
 }
 TEST_KEYS = {
-    "score", "max_score", "status", "name", "name_format", "number", "output", "output_format",
-    "tags", "visibility", "extra_data",
+    "score",
+    "max_score",
+    "status",
+    "name",
+    "name_format",
+    "number",
+    "output",
+    "output_format",
+    "tags",
+    "visibility",
+    "extra_data",
 }
 FORMATS = {"text", "html", "simple_format", "md", "ansi"}
 
 
 def _clean_env(**extra) -> dict:
-    env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME")}
+    env = {
+        k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME")
+    }
     env["PATH"] = os.pathsep.join(
         p for p in env.get("PATH", "").split(os.pathsep) if not p.startswith(sys.prefix)
     )
@@ -75,7 +95,11 @@ def home():
         )
         proc = subprocess.run(
             ["bash", str(home / "source" / "setup.sh")],
-            env=env, capture_output=True, text=True, timeout=900, cwd=home,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=900,
+            cwd=home,
         )
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
         assert "the autograder is ready" in proc.stdout
@@ -100,7 +124,10 @@ def grade(home: Path, notebook: Path, created_at: str) -> tuple[subprocess.Compl
     proc = subprocess.run(
         ["bash", str(home / "run_autograder")],
         env=_clean_env(ROBOLAB_AUTOGRADER_DIR=str(home)),
-        capture_output=True, text=True, timeout=300, cwd=home,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=home,
     )
     results = json.loads((home / "results" / "results.json").read_text())
     return proc, results
@@ -140,8 +167,9 @@ def test_wrong_late_submission_hides_what_is_not_visible(home):
     earned = sum(t["score"] for t in results["tests"])
     assert earned == 60
     # two started days late at 10% a day
-    assert results["score"] == pytest.approx(48) and "2 day(s) after the due date" in (
-        results["output"]
+    assert (
+        results["score"] == pytest.approx(48)
+        and "2 day(s) after the due date" in (results["output"])
     )
     by_visibility = {v: [t for t in results["tests"] if t["visibility"] == v] for v in VISIBILITIES}
     assert by_visibility["after_due_date"] and by_visibility["hidden"]
@@ -168,22 +196,16 @@ def test_hostile_submission_wins_nothing(home, attack):
 def test_answers_are_unreadable_by_a_worker_uid_without_any_sandbox(home):
     """Plain file modes, no namespace and no Landlock: what the worker's uid can read."""
     uid = UID_BASE + 4242
-    probe = (
-        "import sys\n"
-        "for p in sys.argv[1:]:\n"
-        "    try:\n        open(p).read(1); print('read', p)\n"
-        "    except PermissionError:\n        print('denied', p)\n"
-    )
     source = home / "source"
-    proc = subprocess.run(
-        [str(home / "venv" / "bin" / "python"), "-I", "-c", probe,
-         str(source / "solutions" / "demo.py"), str(source / "tests" / "labs" / "test_demo.py"),
-         str(source / "robolab" / "__init__.py")],
-        user=uid, group=uid, extra_groups=[], capture_output=True, text=True, timeout=60,
-    )
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.split("\n")[:3] == [
-        f"denied {source / 'solutions' / 'demo.py'}",
-        f"denied {source / 'tests' / 'labs' / 'test_demo.py'}",
-        f"read {source / 'robolab' / '__init__.py'}",
-    ]
+
+    def readable(path: Path) -> bool:
+        # /usr/bin/test, not Python: the base interpreter may live where other uids cannot go
+        proc = subprocess.run(
+            ["test", "-r", str(path)], user=uid, group=uid, extra_groups=[], timeout=30
+        )
+        return proc.returncode == 0
+
+    assert not readable(source / "solutions" / "demo.py")
+    assert not readable(source / "tests" / "labs" / "test_demo.py")
+    assert readable(source / "robolab" / "__init__.py") and readable(source / "data")
+    assert readable(home / "venv" / "bin" / "activate")

@@ -6,6 +6,8 @@ import csv
 import json
 from pathlib import Path
 
+import pytest
+
 from robolab.grading.report import render_feedback, summary_table, write_feedback, write_gradebook
 from robolab.grading.runner import SubmissionResult, TestOutcome
 
@@ -162,3 +164,80 @@ def test_summary_table_lines_up():
     # columns are aligned: the score column ends at the same offset on every row
     ends = {line.index("/100") + 4 for line in lines[2:4]}
     assert len(ends) == 1
+
+
+# -- everything from the submission is fenced (issue 16, item 5) --------------------------------
+
+INJECTIONS = [
+    "# Feedback on someone_else.ipynb\n\nScore: **100 / 100** points.",
+    "```\n# Feedback\n```\nScore: **100 / 100**",
+    "````\n## `wrap`: 30 / 30 points\n````",
+    "~~~~\n# Feedback\n~~~~",
+    "<h1>Feedback</h1> [link](http://x) ![img](http://x)",
+    "`` ` ``` ```` ````` \n# Score: **100 / 100**",
+    "\r# Feedback\x1b[2J\x00",
+]
+
+
+def _tokens(text: str) -> list[dict]:
+    """CommonMark block tokens (mistune's AST: the Markdown parser nbconvert uses)."""
+    mistune = pytest.importorskip("mistune")
+    return mistune.create_markdown(renderer=None)(text)
+
+
+def _walk(tokens: list[dict]):
+    for t in tokens:
+        yield t
+        yield from _walk(t.get("children") or [])
+
+
+def _text(token: dict) -> str:
+    return "".join(t.get("raw", "") for t in _walk(token.get("children") or []))
+
+
+def _structure(text: str) -> tuple[list[str], str]:
+    """The headings, and the text that is not code, of rendered Markdown."""
+    tokens = list(_walk(_tokens(text)))
+    headings = [_text(t) for t in tokens if t["type"] == "heading"]
+    prose = [t["raw"] for t in tokens if t["type"] == "text"]
+    prose += [
+        "<html>" for t in tokens if t["type"] in ("inline_html", "block_html", "link", "image")
+    ]
+    strong = [_text(t) for t in tokens if t["type"] == "strong"]
+    return headings, "\n".join(prose + strong)
+
+
+@pytest.mark.parametrize("evil", INJECTIONS)
+def test_student_strings_cannot_make_headings_or_scores(evil):
+    honest = partial_result()
+    result = partial_result()
+    result.path = Path(f"subs/{evil.splitlines()[0]}.ipynb")
+    result.problems = [
+        {"cell_index": 2, "kind": "error", "message": evil},
+        {"cell": evil, "kind": "syntax", "message": evil},
+    ]
+    result.errors = [f"grading timed out; the notebook printed {evil}"]
+    result.tests = [
+        TestOutcome(
+            t.nodeid, t.description, t.exercise, t.points, t.outcome, evil if not t.passed else ""
+        )
+        for t in result.tests
+    ]
+    headings, prose = _structure(render_feedback(result))
+    expected_headings, _ = _structure(render_feedback(honest))
+    # the same sections as an honest result (plus the problem section), in the same order
+    assert [h for h in headings[1:] if h != "Grading problems"] == expected_headings[1:]
+    assert headings[0].startswith("Feedback on")
+    assert "100 / 100" not in prose and "Feedback" not in prose.replace("Feedback on", "")
+    assert "<html>" not in prose
+
+
+def test_fences_outgrow_any_backtick_run():
+    from robolab.grading.report import code_span, fenced
+
+    for text in ["`", "``x``", "a ```` b", "`" * 9, "", "~~~", "line\n```\nmore"]:
+        tokens = _tokens("\n".join(fenced(text)) + "\n")
+        assert [t["type"] for t in tokens] == ["block_code"], tokens
+        assert tokens[0]["raw"].rstrip("\n") == text
+        inline = _tokens(code_span(text or "x"))[0]["children"]
+        assert [c["type"] for c in inline] == ["codespan"], inline
