@@ -33,17 +33,7 @@ PROTOCOL = 5
 MAX_DEPTH = 64
 
 _PLAIN_SCALARS = (
-    type(None),
-    bool,
-    int,
-    float,
-    complex,
-    fractions.Fraction,
-    str,
-    bytes,
-    bytearray,
-    slice,
-    range,
+    type(None), bool, int, float, complex, fractions.Fraction, str, bytes, bytearray, slice, range,
 )
 _CONTAINERS = (list, tuple, set, frozenset)
 

@@ -179,6 +179,7 @@ def test_only_robolab_dataclasses_can_be_registered():
         codec.register_dataclass(AlwaysEqual)
 
 
+
 class _FractionFrom:
     """Pickles as Fraction(*args), whatever this Python's own Fraction pickles as."""
 

@@ -93,12 +93,8 @@ def test_non_constant_statements_are_dropped(statement):
 
 @pytest.mark.parametrize(
     "statement",
-    [
-        "SQRT_2PI = np.sqrt(2 * np.pi)",
-        "ANGLES = np.deg2rad(np.arange(0, 360, 10))",
-        "A = np.array([[1.0, 0.0], [0.0, 1.0]], dtype=float)",
-        "L = math.log(2)",
-    ],
+    ["SQRT_2PI = np.sqrt(2 * np.pi)", "ANGLES = np.deg2rad(np.arange(0, 360, 10))",
+     "A = np.array([[1.0, 0.0], [0.0, 1.0]], dtype=float)", "L = math.log(2)"],
 )
 def test_numpy_and_math_functions_of_constants_are_kept(statement):
     assert kept_lines(statement) == [statement]
