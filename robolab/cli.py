@@ -30,34 +30,29 @@ class _Parser(argparse.ArgumentParser):
         sys.exit(USAGE)
 
 
-def _positive_seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
-    if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
-    return value
+def _number(cast, valid, noun: str, rule: str):
+    """An argparse type: ``cast(text)`` that must satisfy ``valid``, else a one-line error."""
+
+    def convert(text: str):
+        try:
+            value = cast(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {noun}") from None
+        if not valid(value):
+            raise argparse.ArgumentTypeError(f"must be {rule}, got {text}")
+        return value
+
+    return convert
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
-
-
-def _percent(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a percentage") from None
-    if not 0 <= value <= 100:
-        raise argparse.ArgumentTypeError(f"must be between 0 and 100 (percent), got {text}")
-    return value
+_positive_seconds = _number(
+    float,
+    lambda v: v > 0 and math.isfinite(v),
+    "a number of seconds",
+    "a positive number of seconds",
+)
+_positive_int = _number(int, lambda v: v >= 1, "a whole number", "at least 1")
+_percent = _number(float, lambda v: 0 <= v <= 100, "a percentage", "between 0 and 100 (percent)")
 
 
 def _visibility(text: str) -> tuple[str, str]:
@@ -185,20 +180,10 @@ def _dispatch(args) -> int:
     if args.command == "data":
         return commands.data(args.out, args.only)
     if args.command == "grade":
+        options = ("lab", "out", "jobs", "timeout", "roster", "overrides", "assignment", "due")
+        options += ("late_penalty", "late_cap", "submitted_times")
         return commands.grade(
-            args.submissions,
-            lab=args.lab,
-            out=args.out,
-            jobs=args.jobs,
-            timeout=args.timeout,
-            roster=args.roster,
-            overrides=args.overrides,
-            exports=args.export,
-            assignment=args.assignment,
-            due=args.due,
-            late_penalty=args.late_penalty,
-            late_cap=args.late_cap,
-            submitted_times=args.submitted_times,
+            args.submissions, exports=args.export, **{k: getattr(args, k) for k in options}
         )
     if args.command == "check":
         return commands.check(args.notebook)

@@ -18,7 +18,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 from tqdm import tqdm
@@ -90,10 +90,15 @@ class SubmissionResult:
 
     @classmethod
     def from_dict(cls, data: dict) -> SubmissionResult:
-        """Inverse of :meth:`to_dict`."""
-        data = dict(data)
+        """Inverse of :meth:`to_dict`; keys this version does not know are ignored."""
+        known = {f.name for f in fields(cls)}
+        data = {k: v for k, v in data.items() if k in known}
         data["path"] = Path(data["path"])
-        data["tests"] = [TestOutcome(**t) for t in data.get("tests", [])]
+        test_fields = {f.name for f in fields(TestOutcome)}
+        data["tests"] = [
+            TestOutcome(**{k: v for k, v in t.items() if k in test_fields})
+            for t in data.get("tests", [])
+        ]
         return cls(**data)
 
     def exercise_scores(self) -> dict[str, tuple[float, float]]:

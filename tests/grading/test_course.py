@@ -15,7 +15,7 @@ import pytest
 from robolab.cli import main
 from robolab.grading.late import LatePolicy, parse_time
 from robolab.grading.lms import CANVAS_COLUMNS, canvas_csv, moodle_csv
-from robolab.grading.overrides import Override, apply_overrides, read_overrides
+from robolab.grading.overrides import apply_overrides, read_overrides
 from robolab.grading.roster import RosterError, Student, match_submissions, matches, read_roster
 from tests.grading.test_runner import SUBMISSIONS, make_root
 

@@ -19,8 +19,8 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from robolab.grading.pytest_plugin import failure_message
 from robolab.grading.batch import submission_names
+from robolab.grading.pytest_plugin import failure_message
 from robolab.grading.runner import grade_all, grade_submission
 
 REPO = Path(__file__).resolve().parents[2]
@@ -267,6 +267,6 @@ def test_submission_names_are_unique_safe_and_order_free(paths):
     assert all(len(n.encode()) <= 100 for n in names)
     # the same files in another order get the same names: a name depends on its path only
     shuffled = list(reversed(paths))
-    assert dict(zip(map(str, shuffled), submission_names(shuffled))) == dict(
-        zip(map(str, paths), names)
+    assert dict(zip(map(str, shuffled), submission_names(shuffled), strict=True)) == dict(
+        zip(map(str, paths), names, strict=True)
     )
