@@ -316,19 +316,27 @@ def solve(notebooks: Sequence[Path], *, out: Path) -> int:
     ``out`` ending in ``.ipynb`` is a file: one notebook is solved into it. Nothing is
     written over an input, over a stub notebook, or into the project's ``notebooks/``.
     """
+    out = Path(out)
+    try:  # the output first: it is cheap to check, nbformat is not cheap to import
+        if out.suffix == ".ipynb":
+            _output_file(out, "-o")
+        else:
+            _output_folder(out, "-o")
+    except ValueError as exc:
+        return _error(str(exc))
     import nbformat
 
     from robolab.grading.batch import atomic_write
     from robolab.grading.labs import Lab, lab_of_notebook, project_root
     from robolab.grading.solve import SolveError, _notebooks, solve_notebook, solve_paths
 
-    out = Path(out)
     try:
         inputs = _notebooks([Path(p) for p in notebooks])
         if not inputs:
             raise SolveError("no notebooks found in " + ", ".join(_shown(p) for p in notebooks))
-        targets = [out] if out.suffix == ".ipynb" else [out / p.name for p in inputs]
-        if out.suffix == ".ipynb" and len(inputs) != 1:
+        single = out.suffix == ".ipynb"
+        targets = [out] if single else [out / p.name for p in inputs]
+        if single and len(inputs) != 1:
             raise SolveError(f"-o {_shown(out)} is one file but {len(inputs)} notebooks were given")
         stubs = (project_root() / "notebooks").resolve()
         for source, target in zip(inputs, targets, strict=True):
@@ -336,18 +344,15 @@ def solve(notebooks: Sequence[Path], *, out: Path) -> int:
                 raise SolveError(f"refusing to write the solution over its input {_shown(source)}")
             if target.resolve().parent == stubs or (target.is_file() and _is_stub_notebook(target)):
                 raise SolveError(f"refusing to write over the stub notebook {_shown(target)}")
-        if out.suffix == ".ipynb":
-            _output_file(out, "-o")
+        if single:
             lab = lab_of_notebook(inputs[0])
             if lab is None:
                 raise SolveError(f"{_shown(inputs[0])}: no robolab.lab in the notebook's metadata")
-            solved = solve_notebook(
-                nbformat.read(str(inputs[0]), as_version=4), Lab(lab, project_root())
-            )
-            atomic_write(out, nbformat.writes(solved) + "\n")
+            nb = nbformat.read(str(inputs[0]), as_version=4)
+            atomic_write(out, nbformat.writes(solve_notebook(nb, Lab(lab, project_root()))) + "\n")
             written = [out]
         else:
-            written = solve_paths(inputs, _output_folder(out, "-o"))
+            written = solve_paths(inputs, out)
     except (SolveError, LabError, ValueError) as exc:
         return _error(str(exc))
     print(f"solved {len(written)} notebook(s) into {_shown(out)}")
@@ -356,10 +361,13 @@ def solve(notebooks: Sequence[Path], *, out: Path) -> int:
 
 def release(out: Path) -> int:
     """Build the student edition into ``out``."""
+    try:
+        _output_folder(out, "release folder")
+    except ValueError as exc:
+        return _error(str(exc))
     from robolab.grading.release import ReleaseError, build_release
 
     try:
-        _output_folder(out, "release folder")
         build_release(out)
     except (ReleaseError, SyntaxError, ValueError) as exc:
         return _error(str(exc))
@@ -396,11 +404,14 @@ def gradescope(
 
 def data(out: Path | None, only: Sequence[str] | None) -> int:
     """Regenerate the bundled data (``robolab data``)."""
-    from robolab.sim import make_data
-
     try:
         if out is not None:
             _output_folder(out, "--out")
+    except ValueError as exc:
+        return _error(str(exc))
+    from robolab.sim import make_data
+
+    try:
         make_data(out_dir=out, only=only)
     except ValueError as exc:
         return _error(str(exc))
