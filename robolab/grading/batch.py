@@ -68,7 +68,8 @@ def atomic_write(path: Path, text: str) -> None:
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
+        # backslashreplace: a file name that is not UTF-8 (surrogate escapes) stays visible
+        with os.fdopen(fd, "w", encoding="utf-8", errors="backslashreplace", newline="") as f:
             f.write(text)
             f.flush()
             os.fsync(f.fileno())
@@ -83,8 +84,12 @@ def atomic_write(path: Path, text: str) -> None:
 
 
 def display_path(path: str | os.PathLike) -> str:
-    """A path as printable UTF-8 text: bytes that are not UTF-8 become ``\\xNN``."""
-    return os.fsencode(path).decode("utf-8", "backslashreplace")
+    """A path (or any text holding one) as UTF-8 text: bytes that were not UTF-8 become
+    ``\\xNN`` (and any other lone surrogate ``\\uDNNN``)."""
+    try:
+        return os.fsencode(path).decode("utf-8", "backslashreplace")
+    except UnicodeEncodeError:  # a surrogate that no file name produced
+        return os.fspath(path).encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 def prepare_out(out: Path) -> Path:
@@ -218,23 +223,25 @@ def assign_labs(
     lab is used.
     """
     declared: list[str | None] = []
-    for p in paths:
+    unreadable = set()
+    for i, p in enumerate(paths):
         try:
             declared.append(lab_of_notebook(p))
-        except LabError:
+        except LabError:  # graded as is: grade_submission says what is wrong with it
             declared.append(None)
+            unreadable.add(i)
     if lab is not None:
         return [
             (
                 lab,
                 []
-                if d in (None, lab)
+                if d in (None, lab) or i in unreadable
                 else [
                     f"lab mismatch: the notebook says lab {d!r} but --lab {lab} was given; "
                     f"graded as {lab!r}"
                 ],
             )
-            for d in declared
+            for i, d in enumerate(declared)
         ]
     known = {spec.name for spec in discover_labs(root) if spec.hidden_tests.is_file()}
     counted = Counter(d for d in declared if d is not None)
@@ -245,10 +252,10 @@ def assign_labs(
             majority = top
     total = sum(counted.values())
     out = []
-    for rel, d in zip(relative_paths(paths), declared, strict=True):
+    for i, (rel, d) in enumerate(zip(relative_paths(paths), declared, strict=True)):
         hint = _path_hint(rel, known)
         expected = hint or majority
-        if expected is None or d == expected:
+        if expected is None or d == expected or i in unreadable:
             out.append((d, []))
             continue
         why = (

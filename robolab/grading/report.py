@@ -62,8 +62,8 @@ def _pts(x: float) -> str:
 
 
 def _printable(text: str) -> str:
-    """Control characters (newlines included) as visible escapes."""
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in str(text))
+    """Bytes that were not UTF-8 as ``\\xNN``, control characters (newlines too) as escapes."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in display_path(str(text)))
 
 
 def code_span(text: str) -> str:
@@ -78,7 +78,8 @@ def fenced(text: str) -> list[str]:
     """``text`` as a fenced code block whose backtick fence is longer than any run inside."""
     longest = max((len(m) for m in re.findall(r"`{3,}", text)), default=0)
     fence = "`" * max(3, longest + 1)
-    return [f"{fence}text", *(_printable(line) for line in text.splitlines()), fence]
+    lines = display_path(text).splitlines()
+    return [f"{fence}text", *(_printable(line) for line in lines), fence]
 
 
 def _exercise_columns(results: Sequence[SubmissionResult]) -> list[str]:
@@ -109,9 +110,9 @@ def _row(r: SubmissionResult, context: Context) -> dict:
         "days_late": late.days_late if late else 0,
         "late_penalty_percent": late.penalty_percent if late else 0.0,
         "final": late.apply(total) if late else total,
-        "overrides": applied,
-        "flags": flags,
-        "errors": list(r.errors),
+        "overrides": [display_path(o) for o in applied],
+        "flags": [display_path(f) for f in flags],
+        "errors": [display_path(e) for e in r.errors],
         "load_problems": len(r.problems),
         "seconds": round(r.seconds, 2),
     }

@@ -95,10 +95,19 @@ def test_a_file_name_that_is_not_utf8_is_graded(tmp_path):
     weird = folder + b"/caf\xe9 # Feedback `x`.ipynb"
     with open(weird, "wb") as f:
         f.write((SUBMISSIONS / "correct.ipynb").read_bytes())
+    broken = folder + b"/\xff\xfe broken.ipynb"
+    with open(broken, "wb") as f:
+        f.write(b"{not json")
     out = tmp_path / "grades"
-    assert grade(os.fsdecode(weird), SUBMISSIONS / "wrong.ipynb", "--out", out) == 0
+    assert (
+        grade(os.fsdecode(weird), os.fsdecode(broken), SUBMISSIONS / "wrong.ipynb", "--out", out)
+        == 0
+    )
     table = csv_rows(out)  # valid UTF-8
-    assert len(table) == 2
+    assert len(table) == 3
+    bad = next(r for r in table if "broken" in r["path"])
+    assert "not a readable notebook" in bad["errors"] and "\\xff" in bad["errors"]
+    json.loads((out / "gradebook.json").read_bytes().decode("utf-8"))
     row = next(r for r in table if "caf" in r["path"])
     assert row["total"] == "100" and "\\xe9" in row["path"]
     name = row["submission"]

@@ -241,3 +241,22 @@ def test_fences_outgrow_any_backtick_run():
         assert tokens[0]["raw"].rstrip("\n") == text
         inline = _tokens(code_span(text or "x"))[0]["children"]
         assert [c["type"] for c in inline] == ["codespan"], inline
+
+
+@pytest.mark.parametrize("odd", ["\udcff\udcfe", "\ud800", "\x00\x1b[2J", "\u202e"])
+def test_odd_characters_from_student_code_are_written_readably(tmp_path, odd):
+    result = partial_result()
+    result.errors = [f"the worker said {odd}"]
+    result.tests[3] = TestOutcome(
+        result.tests[3].nodeid, "wrap: x", "wrap", 10, "failed", f"AssertionError: {odd}"
+    )
+    csv_path, json_path = write_gradebook([result], tmp_path)
+    write_feedback([result], tmp_path)
+    for path in (csv_path, json_path, tmp_path / "feedback" / "alice.md"):
+        text = path.read_bytes().decode("utf-8")  # strict: valid UTF-8
+        assert "the worker said" in text or path.suffix == ".md"
+    error = json.loads(json_path.read_text())[0]["errors"][0]
+    assert error.startswith("the worker said ")
+    error.encode("utf-8")  # no lone surrogate survives into the gradebook
+    feedback = (tmp_path / "feedback" / "alice.md").read_text()
+    assert all(c.isprintable() or c == "\n" for c in feedback)  # escaped, not raw
