@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import stat
 import sys
 import time
@@ -171,6 +172,13 @@ def build_bundle(
     if not spec.solution.is_file():
         raise LabError(f"lab {lab!r} has no reference solution: expected {spec.solution}")
     options = options or BundleOptions()
+    graded = set(re.findall(r"""grades\(\s*["'](\w+)["']""", spec.hidden_tests.read_text()))
+    unknown = sorted(set(options.visibility) - graded)
+    if unknown:
+        raise LabError(
+            f"--visibility names {', '.join(unknown)}, which lab {lab!r} does not grade "
+            f"(its exercises: {', '.join(sorted(graded))})"
+        )
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:

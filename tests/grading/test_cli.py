@@ -144,6 +144,13 @@ def test_outputs_that_cannot_be_written_are_one_line_errors(tmp_path, blocker):
     assert_user_error(
         robolab("gradescope", "--lab", "demo", "--visibility", "wrap=sometimes"), "--visibility"
     )
+    assert_user_error(
+        robolab(
+            "gradescope", "--lab", "demo", "-o", tmp_path / "a.zip", "--visibility", "no=hidden"
+        ),
+        "does not grade",
+    )
+    assert not (tmp_path / "a.zip").exists()
     assert_user_error(robolab("data", "--out", blocker), "--out")
     assert_user_error(robolab("data", "--out", tmp_path / "d", "--only", "nonsense"), "unknown")
 
