@@ -100,28 +100,12 @@ def test_gradebook_has_a_row_per_submission(tmp_path):
     csv_path, json_path = write_gradebook(results, tmp_path)
     rows = list(csv.DictReader(csv_path.open()))
     assert [r["submission"] for r in rows] == ["alice", "bob", "carol"]
-    assert list(rows[0]) == [
-        "submission",
-        "path",
-        "student_id",
-        "student_name",
-        "email",
-        "lab",
-        "normalize",
-        "wrap",
-        "mean_pose",
-        "bayes_posterior",
-        "autograded",
-        "total",
-        "max",
-        "submitted",
-        "days_late",
-        "late_penalty_percent",
-        "final",
-        "overrides",
-        "flags",
-        "errors",
-    ]
+    header = csv_path.read_text().splitlines()[0]
+    assert header == (
+        "submission,path,student_id,student_name,email,lab,"
+        "normalize,wrap,mean_pose,bayes_posterior,"  # every exercise of the batch, in order
+        "autograded,total,max,submitted,days_late,late_penalty_percent,final,overrides,flags,errors"
+    )
     assert rows[0]["path"] == "subs/alice.ipynb" and data_path_is_in_json(tmp_path)
     assert (rows[0]["wrap"], rows[0]["bayes_posterior"], rows[0]["total"], rows[0]["max"]) == (
         "20",
