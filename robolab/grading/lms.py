@@ -11,9 +11,8 @@
   "ID number" (to ``idnumber``) and the grade column to a grade item; a feedback column
   can be mapped to that item's feedback.
 
-A student without a submission gets an empty cell (Canvas and Moodle leave the grade
-unchanged); a student with several submissions gets the best final score (the
-gradebook flags them).
+A student without a submission gets an empty cell, not a zero; a student with several
+submissions gets the best final score (the gradebook flags them).
 """
 
 from __future__ import annotations
