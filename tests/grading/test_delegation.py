@@ -17,7 +17,9 @@ from robolab.grading.delegation import FORBIDDEN, DelegationError, forbidden, re
 
 from . import TEST_LIMITS, write_notebook
 
-ENTRIES = sorted({(lab, ex, name) for lab, t in FORBIDDEN.items() for ex, ns in t.items() for name in ns})
+ENTRIES = sorted(
+    {(lab, ex, name) for lab, t in FORBIDDEN.items() for ex, ns in t.items() for name in ns}
+)
 
 
 @pytest.mark.parametrize("entry", ENTRIES, ids=[f"{lab}.{ex}:{n}" for lab, ex, n in ENTRIES])

@@ -121,7 +121,7 @@ def test_wrap_array(lab):
     )
     assert np.all(_angle_error(got, angles) < 1e-9), (
         "wrap(linspace(-20, 20, 101)): expected the same directions as the input angles "
-        f"(up to 2 pi), got a largest difference of {float(_angle_error(got, angles).max()):.3g} rad"
+        f"(up to 2 pi), got a largest difference of {float(np.max(_angle_error(got, angles))):.3g}"
     )
 
 

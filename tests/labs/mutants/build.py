@@ -113,9 +113,7 @@ def read_mutant(path: Path, lab: str) -> Mutant:
 def mutants_of(lab: str) -> list[Mutant]:
     """Every mutant of ``lab``, sorted by file name (none when the folder does not exist)."""
     folder = HERE / lab
-    return [
-        read_mutant(p, lab) for p in sorted(folder.glob("*.py")) if not p.name.startswith("_")
-    ]
+    return [read_mutant(p, lab) for p in sorted(folder.glob("*.py")) if not p.name.startswith("_")]
 
 
 def labs_with_mutants() -> list[str]:
