@@ -189,7 +189,12 @@ def test_move_particles_wraps_around_the_world_edges(lab):
     out = _f(lab.move_particles(particles, 0.0, 5.0, 0.0, 0.0, np.random.default_rng(0)))
     expected_xy = np.array([[4.0, 50.0], [96.0, 50.0], [50.0, 3.0], [50.0, 98.0], [15.0, 10.0]])
     np.testing.assert_allclose(
-        out[:, :2], expected_xy, atol=1e-9, err_msg="the world is cyclic: x, y in [0, 100)"
+        out[:, :2],
+        expected_xy,
+        atol=1e-9,
+        err_msg="(99, 50) east, (1, 50) west, (50, 98) north, (50, 3) south, (10, 10) east, "
+        "each moved 5 in the cyclic world of 100: expected (4, 50), (96, 50), (50, 3), (50, 98), "
+        "(15, 10)",
     )
     # a long move wraps more than once, and world_size is honoured
     out = _f(
