@@ -24,9 +24,9 @@
 # drifts, and a 360-beam laser scanner. **Monte Carlo localization** (MCL, Probabilistic Robotics Table 8.2)
 # represents its belief by particles, moves them with the **odometry motion model** (Table 5.6), weighs them
 # with the **likelihood field** of the laser (Table 6.3) and **resamples** (Table 4.4). You will build it step
-# by step, as in seed 004 (part 3), run it over the bundled bag `data/localization.bag` against its ground
+# by step, run it over the bundled bag `data/localization.bag` against its ground
 # truth — once from a uniform start (**global localization**) and once from a Gaussian around the known
-# start (**tracking**) — and then add two things the ROS `amcl` package does beyond the seed (seed 000):
+# start (**tracking**) — and then add two things the ROS `amcl` package does beyond the basic algorithm:
 # **KLD-sampling** (adaptive particle counts, Table 8.4) and **recovery** from a kidnapping (augmented MCL,
 # Table 8.3).
 #
@@ -185,8 +185,8 @@ ax.legend(loc="lower right");
 # ## 3.2 The motion model
 #
 # Between two filter updates the odometry moved from $\bar x_{t-1} = (\bar x, \bar y, \bar\theta)$ to
-# $\bar x_t = (\bar x', \bar y', \bar\theta')$ (seed eq. 10). The motion is decomposed into a rotation, a
-# translation and a second rotation (eq. 11):
+# $\bar x_t = (\bar x', \bar y', \bar\theta')$ (Probabilistic Robotics, Table 5.6). The motion is decomposed into a rotation, a
+# translation and a second rotation (Table 5.6, lines 2-4):
 #
 # $$
 # \delta_{trans} = \sqrt{(\bar x' - \bar x)^2 + (\bar y' - \bar y)^2}, \qquad
@@ -203,17 +203,17 @@ ax.legend(loc="lower right");
 # \hat\delta_{rot2} = \delta_{rot2} - \varepsilon(\alpha_1 \delta_{rot2}^2 + \alpha_2 \delta_{trans}^2)
 # $$
 #
-# and moves (eq. 13): $x' = x + \hat\delta_{trans}\cos(\theta + \hat\delta_{rot1})$,
+# and moves (Table 5.6, lines 8-10): $x' = x + \hat\delta_{trans}\cos(\theta + \hat\delta_{rot1})$,
 # $y' = y + \hat\delta_{trans}\sin(\theta + \hat\delta_{rot1})$,
 # $\theta' = \theta + \hat\delta_{rot1} + \hat\delta_{rot2}$.
 #
-# > **Careful with the seed's eq. 12.** It writes the noise as
+# > **Careful with a common rewriting of Table 5.6.** Some handouts write the noise as
 # > $\varepsilon_{\alpha_1|\delta_{rot2}| + \alpha_2|\delta_{trans}|}$: a *standard deviation* linear in the
 # > motion (that is what AMCL's old `diff` model does), and with $\delta_{rot2}$ in the noise of
 # > $\delta_{rot1}$. Table 5.6 uses **variances** $\alpha_1\delta_{rot1}^2 + \alpha_2\delta_{trans}^2$, so that
 # > $\alpha$ are dimensionless ratios. Implement Table 5.6.
 #
-# Two details from AMCL (seed 000, listing 2.1):
+# Two details from AMCL (`amcl_odom.cpp`):
 #
 # * **in-place rotation**: when $\delta_{trans} < 0.01$ m the bearing `atan2` of two almost equal positions is
 #   noise, so $\delta_{rot1} = 0$;
@@ -236,7 +236,7 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
         \delta_{rot1} = \operatorname{atan2}(\bar y' - \bar y, \bar x' - \bar x) - \bar\theta, \quad
         \delta_{rot2} = \bar\theta' - \bar\theta - \delta_{rot1}
 
-    (seed 004, eq. 11). AMCL's guard: when :math:`\delta_{trans} < 0.01` m
+    (Table 5.6, lines 2-4). AMCL's guard: when :math:`\delta_{trans} < 0.01` m
     the bearing of two nearly equal positions is noise, so
     :math:`\delta_{rot1} = 0` (an in-place rotation). Each particle gets its own
     noisy motion,
@@ -249,12 +249,12 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
         \hat\delta_{rot2} &= \delta_{rot2} - \varepsilon(\alpha_1 \delta_{rot2}^2 + \alpha_2 \delta_{trans}^2)
 
     where :math:`\varepsilon(b^2)` is a zero-mean Gaussian of **variance**
-    :math:`b^2`. (Seed 004's eq. 12 writes the noise as
+    :math:`b^2`. (Some handouts write the noise as
     :math:`\varepsilon_{\alpha_1|\delta_{rot2}| + \alpha_2|\delta_{trans}|}`: without
     the squares, i.e. as a standard deviation -- which is what AMCL's plain
     ``ODOM_MODEL_DIFF`` does -- and with :math:`\delta_{rot2}` in the noise of
     :math:`\delta_{rot1}`; Table 5.6 uses variances and :math:`\delta_{rot1}`.)
-    Then (eq. 13)
+    Then (Table 5.6, lines 8-10)
 
     .. math::
 
@@ -263,7 +263,7 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
         \theta' = \theta + \hat\delta_{rot1} + \hat\delta_{rot2}.
 
     With ``corrected=True`` this is AMCL's ``ODOM_MODEL_DIFF_CORRECTED``
-    (seed 000, listing 2.1): backward motion (:math:`\delta_{rot1} \approx \pm\pi`)
+    (``amcl_odom.cpp``): backward motion (:math:`\delta_{rot1} \approx \pm\pi`)
     is treated like forward motion in the noise, which uses
     :math:`\min(|\delta_{rot}|, |\pi - |\delta_{rot}||)` in place of
     :math:`|\delta_{rot}|` for both rotations (the means are unchanged).
@@ -329,8 +329,8 @@ fig.tight_layout()
 #
 # The **likelihood field** (Probabilistic Robotics section 6.4) pre-computes, for every cell, the distance
 # $d$ to the nearest obstacle: the Euclidean distance transform of the occupancy mask
-# (`scipy.ndimage.distance_transform_edt(~grid.occupied)`, in cells) times the **resolution** (seed 004's
-# detail 1: the map is in cells, the laser in metres), clipped at $d_{max}$ (AMCL's
+# (`scipy.ndimage.distance_transform_edt(~grid.occupied)`, in cells) times the **resolution** (the map is in
+# cells, the laser in metres), clipped at $d_{max}$ (AMCL's
 # `laser_likelihood_max_dist`). A beam endpoint at distance $d$ from an obstacle has the hit likelihood
 # $\mathcal N(d; 0, \sigma_{hit}^2) = \frac{1}{\sqrt{2\pi}\sigma_{hit}} e^{-d^2/2\sigma_{hit}^2}$.
 #
@@ -384,7 +384,7 @@ checks.check_likelihood_field(likelihood_field)
 # %%
 SIGMA_HIT, MAX_DIST = 0.1, 2.0
 field = likelihood_field(grid, SIGMA_HIT, MAX_DIST)
-mclplot.plot_likelihood_field(field, title="Likelihood field in log space (seed 004, figure 3)");
+mclplot.plot_likelihood_field(field, title="Likelihood field in log space");
 
 
 # %% [markdown]
@@ -405,7 +405,7 @@ mclplot.plot_likelihood_field(field, title="Likelihood field in log space (seed 
 #
 # * Beams that are not real returns are **skipped**: NaN, `inf` (nothing in range), below `range_min`, and
 #   **max-range** readings (`>= range_max`: a failed return says nothing about where the robot is).
-# * An endpoint **outside the map** (seed 004's detail 2) is scored as if it were at $d_{max}$: the smallest
+# * An endpoint **outside the map** is scored as if it were at $d_{max}$: the smallest
 #   per-beam likelihood, a penalty that keeps the particle alive but behind those whose beams land in the map.
 # * `params["max_beams"]` keeps every $\lfloor (B-1)/(\text{max\_beams}-1) \rfloor$-th beam, like AMCL.
 #
@@ -429,7 +429,7 @@ def likelihood_field_model(scan, particles, field, params):
         y_{z^k} = y_{laser} + z^k \sin(\theta_{laser} + \theta_k),
 
     looked up in the field (world -> cell with the map's resolution and origin,
-    seed 004's detail 1), and scored with the mixture
+    see above), and scored with the mixture
 
     .. math::
 
@@ -439,7 +439,7 @@ def likelihood_field_model(scan, particles, field, params):
     with :math:`z_{max}` the scan's ``range_max``. Beams that are not real
     returns (NaN, inf, outside ``[range_min, range_max)``: max-range readings
     carry no position information, AMCL skips them) are skipped. An endpoint
-    outside the map is scored as if at :math:`d_{max}` (seed 004's detail 2,
+    outside the map is scored as if at :math:`d_{max}` (as above,
     AMCL's ``max_occ_dist``): the smallest per-beam likelihood, a penalty that
     stays finite. ``params["max_beams"]`` keeps every ``(B - 1) // (max_beams - 1)``-th
     beam as AMCL does. The mixture is summed in log space, so the result is
@@ -565,7 +565,7 @@ checks.check_low_variance_resample(low_variance_resample)
 # likelihood of the scan (3.3), normalize, and resample (3.4) to uniform weights. Return
 # `(particles, weights, updated)`.
 #
-# AMCL does not update on every scan (seed 000, listing 1.2; the parameters in `params`):
+# AMCL does not update on every scan (its `update_min_d` and `update_min_a` parameters; here in `params`):
 #
 # * `update_min_d`, `update_min_a`: update only when the robot moved at least that far or turned at least that
 #   much since `odom_prev` (the odometry of the last update); otherwise return the inputs unchanged with
@@ -668,15 +668,13 @@ N_GLOBAL, N_TRACK, GLOBAL_SEED = 3000, 1000, 16
 rng = np.random.default_rng(GLOBAL_SEED)
 global_run = mclplot.run_mcl(data, mcl_step, init_uniform(grid, N_GLOBAL, rng), field_global, GLOBAL_PARAMS, rng,
                              every=2, desc="global localization")
-mclplot.plot_snapshots(grid, global_run, title=f"Global localization: uniform start, {N_GLOBAL} particles "
-                       "(seed 004, figure 4)");
+mclplot.plot_snapshots(grid, global_run, title=f"Global localization: uniform start, {N_GLOBAL} particles");
 
 # %%
 rng = np.random.default_rng(SEED)
 start = init_gaussian(data.truth[0], np.diag([0.1**2, 0.1**2, 0.1**2]), N_TRACK, rng)
 track_run = mclplot.run_mcl(data, mcl_step, start, field, PARAMS, rng, every=1, desc="tracking")
-mclplot.plot_snapshots(grid, track_run, title=f"Tracking: Gaussian start around the true pose, {N_TRACK} particles "
-                       "(seed 004, figure 5)");
+mclplot.plot_snapshots(grid, track_run, title=f"Tracking: Gaussian start around the true pose, {N_TRACK} particles");
 
 # %%
 mclplot.plot_errors({"global (uniform start)": global_run, "tracking (Gaussian start)": track_run}, skip=5.0,
@@ -687,7 +685,7 @@ print(f"tracking after 5 s: max position error {track_run['position_error'][late
 
 
 # %% [markdown]
-# **The early jumps** (seed 004, section 3.5.1): "The big position jumps at the beginning of the localization
+# **The early jumps**: "The big position jumps at the beginning of the localization
 # can be explained by increasing confidence of the best hypothesis over the runtime. At the start, the best
 # hypothesis might simply be inaccurate which will be corrected over time." Here the reason is visible in the
 # snapshots: the particles first gather in **several** offices that explain the scans equally well, and the
@@ -713,7 +711,7 @@ print(f"tracking after 5 s: max position error {track_run['position_error'][late
 # *Your answer here.*
 
 # %% [markdown]
-# ## Beyond the seed 1: KLD-sampling (AMCL's adaptive particle count)
+# ## Step beyond 1: KLD-sampling (AMCL's adaptive particle count)
 #
 # A tight cluster needs far fewer particles than a belief spread over four offices. **KLD-sampling**
 # (Probabilistic Robotics **Table 8.4**, Fox 2003) draws particles until their number exceeds a bound that
@@ -789,7 +787,7 @@ mclplot.plot_particle_count(kld_run, title="KLD-sampling: particle count against
 
 
 # %% [markdown]
-# ## Beyond the seed 2: recovery from a kidnapping (augmented MCL)
+# ## Step beyond 2: recovery from a kidnapping (augmented MCL)
 #
 # Once the particles have converged, nothing can bring them back if they are wrong: a **kidnapped** robot
 # (carried elsewhere, or a wrong initial pose) stays lost. **Augmented MCL** (Table 8.3, AMCL's
