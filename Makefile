@@ -33,6 +33,7 @@ STUDENT_VENV := build/student-venv
 test: $(STAMP)
 	$(BIN)/python -m pytest
 	$(BIN)/robolab solve notebooks/ -o build/solved
+	$(BIN)/python tools/add_figure_audit.py build/solved
 	$(BIN)/robolab release build/student
 	rm -rf $(STUDENT_VENV) && $(PYTHON) -m venv $(STUDENT_VENV)
 	$(STUDENT_VENV)/bin/python -m pip install --quiet --disable-pip-version-check build/student/dist/robolab-*.whl pytest nbval

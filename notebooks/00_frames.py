@@ -534,7 +534,7 @@ cloud_true, time_true = place_scans(laser_true)
 print(f"{len(chosen)} scans, {len(cloud_odom)} endpoints")
 
 # %%
-fig, (ax_odom, ax_true) = plt.subplots(1, 2, figsize=(16, 6))
+fig, (ax_odom, ax_true) = plt.subplots(1, 2, figsize=(13, 5.2))
 plot_scan_cloud(cloud_odom, time_odom, ax_odom, grid=grid, path=robot_odom, vmax=DURATION,
                 title="Scans placed with raw odometry (first 60 s)")
 plot_scan_cloud(cloud_true, time_true, ax_true, grid=grid, path=robot_true, vmax=DURATION,

@@ -413,7 +413,7 @@ ax.plot(x[truths], np.arange(steps + 1), "w.", ms=5, label="true position")
 for lo, hi in DOORS:
     ax.axvspan(lo, hi, color="tab:orange", alpha=0.15, lw=0)
 ax.figure.colorbar(im, ax=ax, label="bel(x)")
-ax.legend(loc="upper right")
+ax.legend(loc="upper right");
 
 # %% [markdown]
 # **Question 3.** After the first "door" the belief has three peaks. Why three, and why

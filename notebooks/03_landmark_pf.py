@@ -44,7 +44,7 @@ from robolab.plotting.landmark_pf import (plot_count_variance, plot_deprivation,
                                           plot_filter_run, plot_paths, plot_world_and_robots)
 from robolab.checks import landmark_pf as checks
 
-SEED = 2024  # one seed for the whole notebook: rerunning gives the same figures
+SEED = 2024  # one random seed for the whole notebook: rerunning gives the same figures
 
 # %% [markdown]
 # ## a. The world and the robot
@@ -149,7 +149,7 @@ start = np.tile([30.0, 30.0, 0.0], (2000, 1))
 fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
 for ax, (fwd, turn) in zip(axes, [(5.0, 0.02), (1.0, 0.3)]):
     moved = move_particles(start, np.pi / 4, 40.0, fwd, turn, np.random.default_rng(SEED))
-    ax.scatter(moved[:, 0], moved[:, 1], s=2, alpha=0.4, label="moved particles")
+    ax.scatter(moved[:, 0], moved[:, 1], s=4, alpha=0.4, label="moved particles")
     ax.plot(30, 30, "ko", label="start (30, 30, 0)")
     ax.set_title(f"u = (pi/4, 40): forward_noise {fwd}, turn_noise {turn}")
     ax.set_xlabel("x [m]"); ax.set_ylabel("y [m]"); ax.set_aspect("equal", adjustable="datalim"); ax.legend()
@@ -449,13 +449,18 @@ history = particle_filter(world, U, measurements, 1000, NOISE, np.random.default
 plot_filter_run(world, history, command_path, true_path, measurements=measurements,
                 title="Particle filter, N = 1000 (section g)")
 errors = np.linalg.norm(history["path"] - true_path, axis=1)
+command_errors = np.linalg.norm(command_path - true_path, axis=1)
 print("position error per step [m]:", np.round(errors, 2))
-print("command path error per step [m]:", np.round(np.linalg.norm(command_path - true_path, axis=1), 2))
+print("command path error per step [m]:", np.round(command_errors, 2))
+worst = int(np.argmax(errors))
+print(f"worst estimate: step {worst + 1} ({errors[worst]:.2f} m); "
+      f"mean error of the filter {errors.mean():.2f} m against {command_errors.mean():.2f} m "
+      "for the command path")
 
 # %% [markdown]
-# **Question.** The first estimate (after the 60 m move) is noticeably worse than the later ones. Look at the
-# projected particles of step 1 and at where the landmark rings cross: why? And why is the estimate after a
-# few steps much better than the command path?
+# **Question.** Which step has the worst estimate (printed above)? Look at the projected particles of that
+# step and at where the landmark rings cross: why is it worse there? And why are the filter's estimates after
+# a few steps much better than the command path?
 #
 # *Your answer here.*
 

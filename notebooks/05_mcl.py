@@ -46,7 +46,7 @@ from robolab.plotting import plot_map, plot_particles, plot_poses
 from robolab.plotting import mcl as mclplot
 from robolab.checks import mcl as checks
 
-SEED = 5  # one seed for the whole notebook: rerunning gives the same figures
+SEED = 5  # one random seed for the whole notebook: rerunning gives the same figures
 
 # %% [markdown]
 # ## The data
@@ -311,13 +311,13 @@ path = [np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([2.0, 0.0, np.pi / 2]),
 clouds = np.zeros((2000, 3))
 for a, b in zip(path[:-1], path[1:]):
     clouds = sample_motion_model_odometry(clouds, a, b, alphas, rng)
-    axes[0].scatter(clouds[:, 0], clouds[:, 1], s=1, alpha=0.4, label=f"after odometry reaches {b[:2]}")
+    axes[0].scatter(clouds[:, 0], clouds[:, 1], s=4, alpha=0.4, label=f"after odometry reaches {b[:2]}")
 axes[0].set(title="Table 5.6: 2000 particles after three odometry steps", xlabel="x [m]", ylabel="y [m]", aspect="equal")
 axes[0].legend(fontsize=7, markerscale=5)
 for corrected, color in ((False, "tab:red"), (True, "tab:blue")):
     back = sample_motion_model_odometry(np.zeros((2000, 3)), [0, 0, 0], [-0.5, 0, 0], alphas,
                                         np.random.default_rng(SEED), corrected=corrected)
-    axes[1].scatter(back[:, 0], back[:, 1], s=1, alpha=0.4, color=color,
+    axes[1].scatter(back[:, 0], back[:, 1], s=4, alpha=0.4, color=color,
                     label=f"corrected={corrected}")
 axes[1].set(title="Backing up 0.5 m: plain vs AMCL diff-corrected", xlabel="x [m]", ylabel="y [m]", aspect="equal")
 axes[1].legend(markerscale=5)
@@ -682,16 +682,26 @@ mclplot.plot_errors({"global (uniform start)": global_run, "tracking (Gaussian s
 late = track_run["t"] >= 5
 print(f"tracking after 5 s: max position error {track_run['position_error'][late].max():.3f} m, "
       f"max heading error {np.rad2deg(track_run['heading_error'][late].max()):.1f} deg")
+locked = mclplot.convergence_time(global_run, tolerance=0.5)
+if locked is None:
+    print("global localization: still more than 0.5 m off at the end of the run")
+else:
+    k = int(np.searchsorted(global_run["t"], locked))
+    x, y = global_run["truth"][k, :2]
+    print(f"global localization locks on at t = {locked:.1f} s (error below 0.5 m from then on), "
+          f"with the robot at ({x:.1f}, {y:.1f}) m; before that the largest error is "
+          f"{global_run['position_error'][:k].max():.1f} m")
 
 
 # %% [markdown]
 # **The early jumps**: "The big position jumps at the beginning of the localization
 # can be explained by increasing confidence of the best hypothesis over the runtime. At the start, the best
 # hypothesis might simply be inaccurate which will be corrected over time." Here the reason is visible in the
-# snapshots: the particles first gather in **several** offices that explain the scans equally well, and the
-# best hypothesis hops between those clusters (a jump of 5 m, the offices' spacing) until the robot reaches
-# the corridor, whose cabinet and bench break the symmetry; then the estimate jumps one last time, to the
-# right place, and stays there. Tracking never has this problem: it starts in the right office.
+# snapshots: the particles first gather in **several** places that explain the scans equally well (the four
+# offices are identical), and the best hypothesis hops between those clusters until the robot sees something
+# that breaks the symmetry; then the estimate jumps one last time, to the right place, and stays there. The
+# cell above prints when that happens and where the robot is then: compare it with the map (which feature
+# did the laser see?). Tracking never has this problem: it starts in the right office.
 #
 # **Questions**
 #
@@ -784,6 +794,25 @@ kld_run = mclplot.run_kld(data, mcl_step, kld_sample_size, init_uniform(grid, 50
                           GLOBAL_PARAMS, rng,
                           epsilon=0.05, z=2.326, n_min=200, n_max=5000, every=3)
 mclplot.plot_particle_count(kld_run, title="KLD-sampling: particle count against time (global start)");
+counts = np.asarray(kld_run["n_particles"])
+at_min = kld_run["t"][np.argmax(counts <= 200)] if (counts <= 200).any() else None
+print(f"particles per update: first {counts[0]}, median {int(np.median(counts))}, last {counts[-1]}; "
+      + (f"down to n_min = 200 at t = {at_min:.1f} s" if at_min is not None else "never down to n_min"))
+kld_locked = mclplot.convergence_time(kld_run, tolerance=0.5)
+print("with KLD-sampling the estimate locks on " + (f"at t = {kld_locked:.1f} s" if kld_locked is not None
+                                                     else "never (still off at the end)"))
+
+# %% [markdown]
+# Look at the printed numbers. KLD-sampling sets the count from how many bins the particles occupy *after*
+# the update. With 60 beams treated as independent, one scan's likelihood is so peaked that a single
+# resampling leaves the particles in a handful of bins, so the bound falls to `n_min` almost at once, even
+# though the belief is still wrong (compare the lock-on time with that of the fixed 3000 particles above).
+#
+# **Question.** What would make the particle count adapt more gradually: fewer beams (`max_beams`), a
+# tempered likelihood (the log-likelihood times a factor < 1), a larger $\varepsilon$, a larger `n_min`?
+# Try one and report the printed numbers.
+#
+# *Your answer here.*
 
 
 # %% [markdown]

@@ -38,7 +38,7 @@
 # %%
 import numpy as np
 import matplotlib.pyplot as plt
-from tqdm import tqdm
+from tqdm.auto import tqdm
 from filterpy.kalman import ExtendedKalmanFilter
 
 from robolab import DATA_DIR
@@ -696,7 +696,7 @@ cells = free[rng.integers(0, len(free), 2000)]
 uniform = np.column_stack([cells[:, 1] + rng.random(2000), cells[:, 0] + rng.random(2000),
                            rng.uniform(-np.pi, np.pi, 2000)])
 pf_global, clouds = particle_filter(uniform, true_grid, rng, n=N_STEPS_GLOBAL, sigma_z=2.0, desc="PF, global")
-fig, axes = plt.subplots(1, 3, figsize=(15, 5))
+fig, axes = plt.subplots(1, 3, figsize=(13, 4.4))
 plot_particle_cloud(uniform, truth[0], world, axes[0], title="Particle filter, global start: t = 0 s")
 for ax, k in zip(axes[1:], (4, N_STEPS_GLOBAL - 1)):
     plot_particle_cloud(clouds[k], truth[k + 1], world, ax, estimate=pf_global[k],
