@@ -776,6 +776,20 @@ plt.show()
 # particles and several scans.
 
 # %% [markdown]
+# ### Try it: the mixture against the map
+#
+# The sliders rerun *your* `beam_range_finder_model` and `pose_likelihood_map` (on a 25 cm lattice,
+# so that a redraw is quick; the weights are normalized to sum to 1). Without Jupyter widgets you see
+# the figure at the defaults. Things to try: $z_{rand} \to 0$ with a small $\sigma_{hit}$ (what happens
+# to the secondary spots, and to the true pose?); a large $z_{short}$ with a large $\lambda_{short}$.
+
+# %%
+from robolab.plotting.interactive import beam_model_explorer
+
+beam_model_explorer(beam_range_finder_model, pose_likelihood_map, scan, maze, BEAMS, COARSE_PARAMS,
+                    true_pose=TRUE_POSE);
+
+# %% [markdown]
 # ## Questions
 #
 # 1. The integrals above are 1 for every $z^*$, $\sigma_{hit}$ and $\lambda_{short}$. What

@@ -485,6 +485,24 @@ plot_error_vs_particles(ns, final_err, title="Final position error against N (8 
 # *Your answer here.*
 
 # %% [markdown]
+# ### Watch it, then try it
+#
+# The replay below steps through the run of section g: the predicted particles (orange), the resampled ones
+# (red), and the estimate against the true path. The sliders after it rerun *your* `particle_filter` with
+# other noise levels and particle counts (without Jupyter widgets: one figure at the defaults). Try a
+# sensor noise of 1 m with 100 particles, then 10 000 particles.
+
+# %%
+from robolab.plotting.animation import animate_landmark_pf, show_animation
+
+show_animation(animate_landmark_pf(world, history, true_path))
+
+# %%
+from robolab.plotting.interactive import landmark_pf_explorer
+
+landmark_pf_explorer(particle_filter, world, U, measurements, true_path, seed=SEED);
+
+# %% [markdown]
 # ## Low-variance against multinomial resampling
 #
 # Multinomial resampling draws $N$ independent indices with probabilities $w_i$

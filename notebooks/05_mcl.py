@@ -175,9 +175,9 @@ checks.check_init_gaussian(init_gaussian)
 # %%
 rng = np.random.default_rng(SEED)
 ax = plot_map(grid, title="Initial particles: uniform (global) and Gaussian (tracking)")
-plot_particles(init_uniform(grid, 3000, rng), ax=ax, size=2, label="uniform, 3000")
+plot_particles(init_uniform(grid, 3000, rng), ax=ax, size=4, label="uniform, 3000")
 plot_particles(init_gaussian(data.truth[0], np.diag([0.1**2, 0.1**2, 0.1**2]), 300, rng), ax=ax,
-               color="tab:blue", size=3, label="Gaussian, 300")
+               color="tab:blue", size=5, label="Gaussian, 300")
 ax.legend(loc="lower right");
 
 
@@ -666,9 +666,11 @@ field_global = likelihood_field(grid, 0.3, MAX_DIST)
 N_GLOBAL, N_TRACK, GLOBAL_SEED = 3000, 1000, 16
 
 rng = np.random.default_rng(GLOBAL_SEED)
+REPLAY_TIMES = sorted({*mclplot.SNAPSHOT_TIMES, *np.arange(0.0, data.t[-1], 2.5)})  # for the replay below
 global_run = mclplot.run_mcl(data, mcl_step, init_uniform(grid, N_GLOBAL, rng), field_global, GLOBAL_PARAMS, rng,
-                             every=2, desc="global localization")
-mclplot.plot_snapshots(grid, global_run, title=f"Global localization: uniform start, {N_GLOBAL} particles");
+                             every=2, desc="global localization", snapshot_times=REPLAY_TIMES)
+mclplot.plot_snapshots(grid, global_run, title=f"Global localization: uniform start, {N_GLOBAL} particles",
+                       times=[t for t in mclplot.SNAPSHOT_TIMES if t in global_run["snapshots"]]);
 
 # %%
 rng = np.random.default_rng(SEED)
@@ -691,6 +693,24 @@ else:
     print(f"global localization locks on at t = {locked:.1f} s (error below 0.5 m from then on), "
           f"with the robot at ({x:.1f}, {y:.1f}) m; before that the largest error is "
           f"{global_run['position_error'][:k].max():.1f} m")
+
+# %% [markdown]
+# The whole global run, replayed every 2.5 s (press play; the player steps frame by frame too):
+
+# %%
+from robolab.plotting.animation import animate_mcl, show_animation
+
+show_animation(animate_mcl(grid, global_run))
+
+# %% [markdown]
+# **Try it.** The sliders rerun *your* `mcl_step` over the first 15 s of the bag, tracking from the true start
+# pose, with another particle count and other motion-noise alphas (without Jupyter widgets: one figure at
+# the defaults). How few particles still track? What do alphas of 0 do, and why?
+
+# %%
+from robolab.plotting.interactive import mcl_explorer
+
+mcl_explorer(data, mcl_step, init_gaussian, field, PARAMS);
 
 
 # %% [markdown]

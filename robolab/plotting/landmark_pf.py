@@ -129,7 +129,7 @@ def plot_filter_run(
             predicted[t],
             ax=ax,
             color="k",
-            size=2.0,
+            size=4.0,
             alpha=0.5,
             label="projected particles" if t == 0 else None,
         )

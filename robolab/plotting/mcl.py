@@ -510,13 +510,21 @@ def plot_snapshots(
     *,
     title: str = "MCL",
     max_points: int = 3000,
+    times: Sequence[float] | None = None,
 ) -> plt.Figure:
     """Particles at each snapshot time, true pose and estimate marked.
 
     ``result`` is from :func:`run_mcl`; the true pose at a snapshot is the
-    ground truth of the scan it was taken at.
+    ground truth of the scan it was taken at. ``times`` picks the snapshots to
+    show (default all; a run recorded for an animation has many).
     """
-    times = sorted(result["snapshots"])
+    if times is None:
+        times = sorted(result["snapshots"])
+    else:
+        missing = [t for t in times if t not in result["snapshots"]]
+        if missing:
+            raise ValueError(f"no snapshot at {missing}; the run has {sorted(result['snapshots'])}")
+        times = sorted(times)
     fig, axes = panel_grid(len(times), panel=(4.3, 3.2), title=title)
     for ax, t in zip(axes, times, strict=True):
         p, w = result["snapshots"][t]
