@@ -308,4 +308,8 @@ def report() -> None:
             f"{len(_AUDITOR.problems)} figure problem(s) (see docs/figures.md):\n  "
             + "\n  ".join(_AUDITOR.problems)
         )
-    print(f"figure audit: {len(_AUDITOR.seen)} figure(s), no problem")
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    print(f"figure audit: {len(_AUDITOR.seen)} figure(s), no problem; "
+          f"kernel CPU {usage.ru_utime + usage.ru_stime:.1f} s")
