@@ -6,7 +6,8 @@ open and every value a cell displays, so that a notebook run (``make test`` runs
 solved notebooks this way) fails on an untitled figure, an axis without a label, a
 legend entry whose artist cannot be seen or that covers the data, or a stray repr
 such as ``<matplotlib.legend.Legend at 0x...>`` or ``np.float64(0.5)``;
-:func:`report` raises with everything found.
+:func:`report` raises with everything found. With ``ROBOLAB_AUDIT_SAVE=folder`` in the
+kernel's environment every audited figure is also saved there as a PNG, to look at.
 
 What counts as a problem (each rule is in docs/figures.md):
 
@@ -25,7 +26,9 @@ What counts as a problem (each rule is in docs/figures.md):
 
 from __future__ import annotations
 
+import os
 import re
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -271,6 +274,8 @@ class _Auditor:
         self.seen: set[int] = set()
         self.problems: list[str] = []
         self.cell = 0
+        folder = os.environ.get("ROBOLAB_AUDIT_SAVE")
+        self.save_to = Path(folder) if folder else None
 
     def post_run_cell(self, result: Any) -> None:
         import matplotlib.pyplot as plt
@@ -286,6 +291,9 @@ class _Auditor:
                 continue
             self.seen.add(id(fig))
             self.problems += audit_figure(fig, f"{where}, figure {number}")
+            if self.save_to is not None:  # to look at every figure of a run as PNG files
+                self.save_to.mkdir(parents=True, exist_ok=True)
+                fig.savefig(self.save_to / f"cell{self.cell:03d}_fig{number}.png", dpi=72)
             plt.close(fig)
 
 

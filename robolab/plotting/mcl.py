@@ -560,7 +560,7 @@ def plot_snapshots(
         ax.set_ylabel("y [m]")
     handles, labels = axes[0].get_legend_handles_labels()
     fig.tight_layout(rect=(0, 0.06, 1, 1))
-    fig.legend(handles, labels, loc="lower center", ncol=len(labels), markerscale=2.5,
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels),
                fontsize="small", frameon=False)
     return fig
 
