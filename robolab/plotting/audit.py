@@ -293,7 +293,9 @@ class _Auditor:
             self.problems += audit_figure(fig, f"{where}, figure {number}")
             if self.save_to is not None:  # to look at every figure of a run as PNG files
                 self.save_to.mkdir(parents=True, exist_ok=True)
-                fig.savefig(self.save_to / f"cell{self.cell:03d}_fig{number}.png", dpi=72)
+                # as Jupyter shows it: the inline backend crops to the drawn extent
+                fig.savefig(self.save_to / f"cell{self.cell:03d}_fig{number}.png", dpi=72,
+                            bbox_inches="tight")
             plt.close(fig)
 
 
