@@ -308,13 +308,14 @@ def plot_likelihood_map(
     ax.plot([], [], "s", color="lightsteelblue", label="walls")
     if true_pose is not None:
         tp = as_array("true_pose", true_pose, shape=(3,), finite=True)
-        ax.plot(
+        ax.plot(  # hollow, so that the peak under it stays visible
             tp[0],
             tp[1],
-            "*",
-            color="tab:cyan",
-            markersize=16,
-            markeredgecolor="k",
+            "o",
+            markerfacecolor="none",
+            markeredgecolor="tab:cyan",
+            markeredgewidth=2.0,
+            markersize=14,
             label="true pose",
         )
         ax.annotate(
