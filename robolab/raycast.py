@@ -383,7 +383,28 @@ def cast_rays(grid: OccupancyGrid, poses, angles, max_range) -> np.ndarray:
     >>> cast_rays(g, [2.5, 5.5, 0.0], [0.0, np.pi], 20.0)  # doctest: +SKIP
     array([[ 5.5, 20. ]])
     """
-    return _caster_for(grid).cast(poses, angles, max_range)
+    caster = _caster_for(grid)
+    zmax = check_positive("max_range", max_range)
+    p = as_poses("poses", poses)
+    reach = _reach(grid, p) if p.shape[0] and np.isfinite(p).all() else np.inf
+    if zmax <= reach:
+        return caster.cast(poses, angles, zmax)
+    # A range beyond the farthest map corner cannot change the result, but can
+    # overflow in cell units (1e308 m / 0.05 m = inf): trace to the reach only,
+    # and report a ray that got there without a hit as max_range.
+    out = caster.cast(poses, angles, reach)
+    out[out >= reach] = zmax
+    return out
+
+
+def _reach(grid: OccupancyGrid, poses: np.ndarray) -> float:
+    """A distance no ray from ``poses`` travels inside the map: past the farthest corner."""
+    h, w = grid.shape
+    corners = grid.cell_to_world(
+        np.array([[-0.5, -0.5], [-0.5, w - 0.5], [h - 0.5, -0.5], [h - 0.5, w - 0.5]])
+    )
+    far = np.hypot(*(corners[None, :, :] - poses[:, None, :2]).transpose(2, 0, 1)).max()
+    return float(far) + 2.0 * grid.resolution
 
 
 # -- the measurement-model lab's API (pixel units) ---------------------------------------

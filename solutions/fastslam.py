@@ -44,7 +44,14 @@ import numpy as np
 
 from robolab.fiducials import DT, as_robot, sqrt_psd
 from robolab.geometry import wrap_angle
-from robolab.validation import as_array, check_count, check_covariance, check_positive, check_rng
+from robolab.validation import (
+    as_array,
+    check_count,
+    check_covariance,
+    check_covariance_stack,
+    check_positive,
+    check_rng,
+)
 
 __all__ = [
     "init_particles",
@@ -195,8 +202,11 @@ def h_jacobian(landmark, pose):
         H = \begin{pmatrix} \delta_x / \sqrt q & \delta_y / \sqrt q \\
                             -\delta_y / q & \delta_x / q \end{pmatrix}
 
-    :math:`q` is floored at :data:`MIN_SQ_RANGE` so that a landmark estimate
-    on top of the robot gives a large but finite Jacobian.
+    In the bearing row :math:`q` is floored at :data:`MIN_SQ_RANGE`, and the range
+    row is always a unit vector (the x axis for a landmark exactly on the robot),
+    so that a landmark estimate on top of the robot gives a large but finite
+    Jacobian whose inverse stays bounded; :math:`\sqrt q` is computed with
+    ``hypot``, which does not overflow for far landmarks.
 
     Parameters
     ----------
@@ -258,16 +268,18 @@ def update_landmark(mean, cov, z, pose, Qt):
         :math:`\ln \mathcal N(z; \hat z, Q)`, finite.
     """
     mu = _last_dim("mean", mean, 2)
-    sigma = as_array("cov", cov, finite=True)
-    if sigma.ndim < 2 or sigma.shape[-2:] != (2, 2):
-        raise ValueError(f"cov must have shape (..., 2, 2), got {sigma.shape}")
+    sigma = check_covariance_stack("cov", cov, 2, definite=True)
     zz = _last_dim("z", z, 2)
     p = _last_dim("pose", pose, 3)
     qt = check_covariance("Qt", Qt, 2, definite=True)
-    return _ekf_update(mu, sigma, zz, p, qt)
+    out = _ekf_update(mu, sigma, zz, p, qt)
+    _check_update(out, "the update")
+    return out
 
 
-def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True):
+def fastslam_step(
+    state, command, observations, Q, Qt, rng, dt=DT, resample=True, ess_threshold=None
+):
     r"""One step of FastSLAM 1.0 with known correspondences (Probabilistic Robotics Table 13.1).
 
     1. Sample each particle's pose from the motion model (:func:`predict_poses`).
@@ -284,6 +296,11 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
        weights stay finite even when every likelihood underflows.
     4. Resample with the low-variance sampler (Table 4.4), unless ``resample``
        is False or there was no observation (then the weights did not change).
+       With ``ess_threshold`` set, resample only when the effective sample size
+       :math:`N_{eff} = 1 / \sum_k w_k^2` falls below ``ess_threshold * M``
+       (selective resampling, Grisetti et al. 2007; ``0.5`` is the usual
+       choice): resampling after every measurement throws away particles that
+       are nearly as good as the kept ones and depletes the paths.
        Resampling copies the chosen particles' arrays (fancy indexing): no two
        particles share landmark memory, and the input ``state`` is not modified.
 
@@ -306,6 +323,9 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
     resample : bool
         Resample after weighting (the book always does). With False the new
         state keeps the normalized importance weights.
+    ess_threshold : float in (0, 1], optional
+        Resample only when :math:`N_{eff} < ` ``ess_threshold * M``; ``None``
+        (default) resamples after every step with an observation, as the book.
 
     Returns
     -------
@@ -319,6 +339,9 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
     poses = predict_poses(s["poses"], command, Q, rng, dt)  # checks command, Q, rng, dt
     means, covs, seen = s["means"].copy(), s["covs"].copy(), s["seen"].copy()
     log_w = np.log(s["weights"], out=np.full_like(s["weights"], -np.inf), where=s["weights"] > 0)
+    ess = None if ess_threshold is None else check_positive("ess_threshold", ess_threshold)
+    if ess is not None and ess > 1:
+        raise ValueError(f"ess_threshold must be in (0, 1], got {ess_threshold!r}")
     ids = obs[:, 2].astype(np.intp)
     remaining = np.arange(len(obs))
     while remaining.size:  # rounds of distinct landmark ids (one round unless ids repeat)
@@ -332,11 +355,12 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
             new_mu = np.where(known[..., None], new_mu, init_mu)
             new_sigma = np.where(known[..., None, None], new_sigma, init_sigma)
             log_like = np.where(known, log_like, LOG_P0)
+        _check_update((new_mu, new_sigma, log_like), f"observations {obs[batch].tolist()}")
         means[:, j], covs[:, j], seen[:, j] = new_mu, new_sigma, True
         log_w = log_w + log_like.sum(axis=1)
     weights = _normalize_log_weights(log_w)
     new = {"poses": poses, "means": means, "covs": covs, "seen": seen, "weights": weights}
-    if resample and len(obs):
+    if resample and len(obs) and (ess is None or 1.0 / np.sum(weights**2) < ess * len(weights)):
         idx = _low_variance_resample(weights, rng)
         new = {key: value[idx] for key, value in new.items() if key != "weights"}
         new["weights"] = np.full(len(idx), 1.0 / len(idx))
@@ -344,7 +368,14 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
 
 
 def fastslam(
-    robot_or_run, n_particles, rng, init="first_observation", Q=None, Qt=None, history=False
+    robot_or_run,
+    n_particles,
+    rng,
+    init="first_observation",
+    Q=None,
+    Qt=None,
+    history=False,
+    ess_threshold=None,
 ):
     r"""Run FastSLAM 1.0 over a whole run of the fiducial robot (seed 003's main loop).
 
@@ -380,6 +411,10 @@ def fastslam(
         Noise covariances the filter assumes; default the robot's own.
     history : bool
         Also return every particle's pose at every step.
+    ess_threshold : float in (0, 1], optional
+        Resample only when the effective sample size falls below
+        ``ess_threshold * n_particles`` (see :func:`fastslam_step`); default
+        ``None`` resamples after every step with an observation.
 
     Returns
     -------
@@ -399,7 +434,9 @@ def fastslam(
     while robot.run():
         z = robot.measurement()
         observed[z[:, 2].astype(np.intp)] = True
-        state = fastslam_step(state, robot.input(), z, q, qt, rng, dt=robot.dt)
+        state = fastslam_step(
+            state, robot.input(), z, q, qt, rng, dt=robot.dt, ess_threshold=ess_threshold
+        )
         path.append(_mean_pose(state["poses"], state["weights"]))
         if history:
             particles.append(state["poses"])
@@ -439,14 +476,23 @@ def _last_dim(name, value, n) -> np.ndarray:
 
 
 def _inv2(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse and determinant of a stack of 2 x 2 matrices, in closed form."""
-    det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
-    inv = np.empty_like(a)
-    inv[..., 0, 0] = a[..., 1, 1]
-    inv[..., 1, 1] = a[..., 0, 0]
-    inv[..., 0, 1] = -a[..., 0, 1]
-    inv[..., 1, 0] = -a[..., 1, 0]
-    return inv / det[..., None, None], det
+    """Inverse and log-determinant of a stack of 2 x 2 matrices, in closed form.
+
+    Each matrix is scaled by its largest entry first, so that entries of 1e-300
+    or 1e200 neither underflow nor overflow in the determinant:
+    ``inv(s A') = inv(A') / s`` and ``log|s A'| = 2 log s + log|A'|``.
+    """
+    s = np.abs(a).max(axis=(-2, -1))
+    s = np.where(s > 0, s, 1.0)
+    b = a / s[..., None, None]
+    det = b[..., 0, 0] * b[..., 1, 1] - b[..., 0, 1] * b[..., 1, 0]
+    inv = np.empty_like(b)
+    inv[..., 0, 0] = b[..., 1, 1]
+    inv[..., 1, 1] = b[..., 0, 0]
+    inv[..., 0, 1] = -b[..., 0, 1]
+    inv[..., 1, 0] = -b[..., 1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return inv / (det * s)[..., None, None], 2.0 * np.log(s) + np.log(det)
 
 
 def _ekf_update(mu, sigma, zz, p, qt):
@@ -456,7 +502,7 @@ def _ekf_update(mu, sigma, zz, p, qt):
     Ht = np.swapaxes(H, -1, -2)
     PHt = sigma @ Ht
     S = H @ PHt + qt
-    S_inv, det_S = _inv2(S)
+    S_inv, logdet_S = _inv2(S)
     K = PHt @ S_inv
     e = zz - zhat
     e = np.concatenate([e[..., :1], wrap_angle(e[..., 1:2])], -1)
@@ -464,8 +510,18 @@ def _ekf_update(mu, sigma, zz, p, qt):
     new_cov = sigma - K @ H @ sigma
     new_cov = 0.5 * (new_cov + np.swapaxes(new_cov, -1, -2))
     maha = np.einsum("...i,...ij,...j->...", e, S_inv, e)
-    log_like = -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * np.log(det_S)
+    log_like = -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * logdet_S
     return new_mean, new_cov, log_like
+
+
+def _check_update(update, what) -> None:
+    """Raise if an EKF update or initialization left the range of float64."""
+    mean, cov, log_like = update
+    if not (np.isfinite(mean).all() and np.isfinite(cov).all() and not np.isnan(log_like).any()):
+        raise ValueError(
+            f"{what}: the landmark estimate is not finite in float64 (a range or covariance "
+            f"too large or too small for the landmark's mean and covariance)"
+        )
 
 
 def _sample_motion(p, u, q_sqrt, rng, dt):
@@ -489,9 +545,12 @@ def _range_bearing_jacobian(lm, p):
     """The body of :func:`h_jacobian` on checked arrays."""
     dx = lm[..., 0] - p[..., 0]
     dy = lm[..., 1] - p[..., 1]
-    q = np.maximum(dx * dx + dy * dy, MIN_SQ_RANGE)
-    r = np.sqrt(q)
-    return np.stack([np.stack([dx / r, dy / r], -1), np.stack([-dy / q, dx / q], -1)], -2)
+    d = np.hypot(dx, dy)  # no overflow of dx^2 + dy^2
+    safe = d > 0
+    c = np.where(safe, dx / np.where(safe, d, 1.0), 1.0)  # the unit direction (x axis at d = 0)
+    s = np.where(safe, dy / np.where(safe, d, 1.0), 0.0)
+    r = np.maximum(d, np.sqrt(MIN_SQ_RANGE))  # the bearing's rate: 1 / r, bounded near the robot
+    return np.stack([np.stack([c, s], -1), np.stack([-s / r, c / r], -1)], -2)
 
 
 def _landmark_from_observation(z, pose, Qt):
@@ -501,7 +560,8 @@ def _landmark_from_observation(z, pose, Qt):
     mu = np.stack([pose[..., 0] + r * np.cos(angle), pose[..., 1] + r * np.sin(angle)], -1)
     mu = np.broadcast_to(mu, np.broadcast_shapes(mu.shape, pose.shape[:-1] + (2,)))
     H_inv, _ = _inv2(_range_bearing_jacobian(mu, pose))
-    return mu.copy(), H_inv @ Qt @ np.swapaxes(H_inv, -1, -2)
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge range: checked by the caller
+        return mu.copy(), H_inv @ Qt @ np.swapaxes(H_inv, -1, -2)
 
 
 def _normalize_log_weights(log_w: np.ndarray) -> np.ndarray:

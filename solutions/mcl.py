@@ -603,8 +603,15 @@ def kld_sample_size(k, epsilon, z):
         raise ValueError(f"z must be finite, got {z!r}")
     km1 = np.maximum(kk - 1, 1).astype(float)
     b = 2.0 / (9.0 * km1)
-    n = np.ceil(km1 / (2.0 * eps) * (1.0 - b + np.sqrt(b) * zq) ** 3)
-    n = np.where(kk == 1, 1, np.maximum(n, 1)).astype(np.int64)
+    with np.errstate(over="ignore"):
+        n = np.ceil(km1 / (2.0 * eps) * (1.0 - b + np.sqrt(b) * zq) ** 3)
+    n = np.where(kk == 1, 1.0, np.maximum(n, 1.0))
+    if np.any(n >= 2.0**63):  # not representable as int64 (it would wrap to negative)
+        raise ValueError(
+            f"epsilon={epsilon!r} is too small: the bound needs {np.max(n):.3g} particles, "
+            f"more than an int64 holds"
+        )
+    n = n.astype(np.int64)
     return int(n) if n.ndim == 0 else n
 
 

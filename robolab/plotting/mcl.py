@@ -110,37 +110,51 @@ class LocalizationData:
 KLD_BIN_SIZE = (0.5, 0.5, math.radians(10.0))
 
 
-def load_localization(bag_path=None, map_path=None) -> LocalizationData:
+def load_localization(
+    bag_path=None,
+    map_path=None,
+    *,
+    scan_topic: str = "/base_scan",
+    odom="/odom",
+    truth="/ground_truth",
+    base_frame: str = "base_link",
+    truth_delay: float = 0.0,
+) -> LocalizationData:
     """Read ``data/localization.bag`` and ``data/office.yaml`` (or the given files).
 
-    Odometry is interpolated at the scan stamps (``PoseTrack.at``); the laser
-    mount comes from ``/tf`` (``laser_pose_in_base``).
+    Odometry and truth are interpolated at the scan stamps (``PoseTrack.at``); the
+    laser mount comes from ``/tf`` (``laser_pose_in_base``). The topics and message
+    types are configurable (:func:`robolab.datasets.rosbag.read_recording`): ``odom``
+    and ``truth`` are an Odometry or PoseStamped topic or ``("/tf", parent, child)``.
+    The real Olin Neato bag loads with ``scan_topic="/scan", truth="/map_pose"``.
     """
     from robolab import DATA_DIR
-    from robolab.bag import BagReader, laser_pose_in_base
+    from robolab.datasets.rosbag import read_recording
 
     bag_path = Path(bag_path) if bag_path is not None else DATA_DIR / "localization.bag"
     map_path = Path(map_path) if map_path is not None else DATA_DIR / "office.yaml"
     grid = load_map(map_path)
-    with BagReader(bag_path) as bag:
-        scans = bag.scans("/base_scan")
-        odom = bag.odometry("/odom")
-        truth = bag.odometry("/ground_truth")
-        laser = laser_pose_in_base(bag.tf(), scans.frame_id)
-    lo = max(odom.stamps.min(), truth.stamps.min())
-    hi = min(odom.stamps.max(), truth.stamps.max())
-    keep = (scans.stamps >= lo) & (scans.stamps <= hi)
-    stamps = scans.stamps[keep]
+    rec = read_recording(
+        bag_path,
+        scan_topic=scan_topic,
+        odom=odom,
+        truth=truth,
+        base_frame=base_frame,
+        truth_delay=truth_delay,
+    )
+    if rec.truth is None:
+        raise ValueError("load_localization needs a ground-truth source (truth=None given)")
+    stamps = rec.scans.stamps
     return LocalizationData(
         grid=grid,
         t=stamps - stamps[0],
-        ranges=np.asarray(scans.ranges[keep], dtype=float),
-        angles=np.asarray(scans.angles, dtype=float),
-        range_min=float(scans.range_min),
-        range_max=float(scans.range_max),
-        odom=odom.at(stamps),
-        truth=truth.at(stamps),
-        laser_pose=np.asarray(laser, dtype=float),
+        ranges=np.asarray(rec.scans.ranges, dtype=float),
+        angles=np.asarray(rec.scans.angles, dtype=float),
+        range_min=float(rec.scans.range_min),
+        range_max=float(rec.scans.range_max),
+        odom=rec.odom,
+        truth=rec.truth,
+        laser_pose=rec.laser_pose,
     )
 
 
