@@ -41,6 +41,8 @@ def normalize(weights) -> np.ndarray:
         entry, or sums to zero.
     """
     w = as_array("weights", weights, ndim=1, finite=True, nonnegative=True)
+    if w.size and w.max() > 0:
+        w = w / w.max()  # the same ratios; the sum of weights near 1e308 cannot overflow
     total = w.sum()
     if w.size == 0 or total <= 0.0:
         raise ValueError(

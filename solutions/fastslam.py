@@ -277,9 +277,7 @@ def update_landmark(mean, cov, z, pose, Qt):
     return out
 
 
-def fastslam_step(
-    state, command, observations, Q, Qt, rng, dt=DT, resample=True, ess_threshold=None
-):
+def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True):
     r"""One step of FastSLAM 1.0 with known correspondences (Probabilistic Robotics Table 13.1).
 
     1. Sample each particle's pose from the motion model (:func:`predict_poses`).
@@ -296,8 +294,8 @@ def fastslam_step(
        weights stay finite even when every likelihood underflows.
     4. Resample with the low-variance sampler (Table 4.4), unless ``resample``
        is False or there was no observation (then the weights did not change).
-       With ``ess_threshold`` set, resample only when the effective sample size
-       :math:`N_{eff} = 1 / \sum_k w_k^2` falls below ``ess_threshold * M``
+       With a number for ``resample``, resample only when the effective sample
+       size :math:`N_{eff} = 1 / \sum_k w_k^2` falls below ``resample * M``
        (selective resampling, Grisetti et al. 2007; ``0.5`` is the usual
        choice): resampling after every measurement throws away particles that
        are nearly as good as the kept ones and depletes the paths.
@@ -320,12 +318,11 @@ def fastslam_step(
     rng : numpy.random.Generator
     dt : float
         Time step in seconds.
-    resample : bool
-        Resample after weighting (the book always does). With False the new
-        state keeps the normalized importance weights.
-    ess_threshold : float in (0, 1], optional
-        Resample only when :math:`N_{eff} < ` ``ess_threshold * M``; ``None``
-        (default) resamples after every step with an observation, as the book.
+    resample : bool or float
+        True (default): resample after every step with an observation, as the
+        book. False: never; the new state keeps the normalized importance
+        weights. A number in (0, 1]: resample only when
+        :math:`N_{eff} <` ``resample * M`` (0.5: below half the particles).
 
     Returns
     -------
@@ -339,9 +336,7 @@ def fastslam_step(
     poses = predict_poses(s["poses"], command, Q, rng, dt)  # checks command, Q, rng, dt
     means, covs, seen = s["means"].copy(), s["covs"].copy(), s["seen"].copy()
     log_w = np.log(s["weights"], out=np.full_like(s["weights"], -np.inf), where=s["weights"] > 0)
-    ess = None if ess_threshold is None else check_positive("ess_threshold", ess_threshold)
-    if ess is not None and ess > 1:
-        raise ValueError(f"ess_threshold must be in (0, 1], got {ess_threshold!r}")
+    ess = _ess_fraction(resample)
     ids = obs[:, 2].astype(np.intp)
     remaining = np.arange(len(obs))
     while remaining.size:  # rounds of distinct landmark ids (one round unless ids repeat)
@@ -368,14 +363,7 @@ def fastslam_step(
 
 
 def fastslam(
-    robot_or_run,
-    n_particles,
-    rng,
-    init="first_observation",
-    Q=None,
-    Qt=None,
-    history=False,
-    ess_threshold=None,
+    robot_or_run, n_particles, rng, init="first_observation", Q=None, Qt=None, history=False
 ):
     r"""Run FastSLAM 1.0 over a whole run of the fiducial robot (seed 003's main loop).
 
@@ -411,10 +399,6 @@ def fastslam(
         Noise covariances the filter assumes; default the robot's own.
     history : bool
         Also return every particle's pose at every step.
-    ess_threshold : float in (0, 1], optional
-        Resample only when the effective sample size falls below
-        ``ess_threshold * n_particles`` (see :func:`fastslam_step`); default
-        ``None`` resamples after every step with an observation.
 
     Returns
     -------
@@ -434,9 +418,7 @@ def fastslam(
     while robot.run():
         z = robot.measurement()
         observed[z[:, 2].astype(np.intp)] = True
-        state = fastslam_step(
-            state, robot.input(), z, q, qt, rng, dt=robot.dt, ess_threshold=ess_threshold
-        )
+        state = fastslam_step(state, robot.input(), z, q, qt, rng, dt=robot.dt)
         path.append(_mean_pose(state["poses"], state["weights"]))
         if history:
             particles.append(state["poses"])
@@ -512,6 +494,18 @@ def _ekf_update(mu, sigma, zz, p, qt):
     maha = np.einsum("...i,...ij,...j->...", e, S_inv, e)
     log_like = -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * logdet_S
     return new_mean, new_cov, log_like
+
+
+def _ess_fraction(resample) -> float | None:
+    """None for ``resample`` True / False (always / never), else the ESS fraction in (0, 1]."""
+    if isinstance(resample, (bool, np.bool_)):
+        return None
+    fraction = check_positive("resample", resample)
+    if fraction > 1:
+        raise ValueError(
+            f"resample must be True, False or an ESS fraction in (0, 1], got {resample!r}"
+        )
+    return fraction
 
 
 def _check_update(update, what) -> None:

@@ -27,7 +27,7 @@ from scipy import ndimage
 
 from robolab.geometry import angle_diff, compose, wrap_angle
 from robolab.maps import OccupancyGrid
-from robolab.validation import as_array, as_poses, check_positive
+from robolab.validation import LOG_FLOAT_MAX, as_array, as_poses, check_positive
 from solutions.landmark_pf import low_variance_resample  # lab 03's, reused (Table 4.4)
 
 __all__ = [
@@ -317,7 +317,7 @@ def likelihood_field(grid, sigma_hit, max_dist):
     """
     if not isinstance(grid, OccupancyGrid):
         raise TypeError(f"grid must be a robolab.maps.OccupancyGrid, got {type(grid).__name__}")
-    sigma = check_positive("sigma_hit", sigma_hit)
+    sigma = _sigma_hit("sigma_hit", sigma_hit)
     dmax = check_positive("max_dist", max_dist)
     occupied = grid.occupied
     if occupied.any():
@@ -792,11 +792,19 @@ def _field_arrays(field):
     if missing:
         raise ValueError(f"field is missing key(s) {missing}")
     dist = as_array("field['distance']", field["distance"], ndim=2, finite=True, nonnegative=True)
-    sigma = check_positive("field['sigma_hit']", field["sigma_hit"])
+    sigma = _sigma_hit("field['sigma_hit']", field["sigma_hit"])
     dmax = check_positive("field['max_dist']", field["max_dist"])
     # an empty grid with the field's geometry: robolab.maps does every cell <-> world conversion
     geometry = OccupancyGrid(np.zeros((1, 1)), field["resolution"], field["origin"])
     return dist, sigma, dmax, geometry
+
+
+def _sigma_hit(name, value) -> float:
+    """A positive sigma whose Gaussian peak ``1 / (sqrt(2 pi) sigma)`` is a float64."""
+    sigma = check_positive(name, value)
+    if _log_gaussian(0.0, sigma) > LOG_FLOAT_MAX:
+        raise ValueError(f"{name}={sigma!r} is too small: the Gaussian's peak overflows float64")
+    return sigma
 
 
 def _log_gaussian(d, sigma):

@@ -95,6 +95,20 @@ def test_low_variance_resample_of_equal_huge_weights_takes_each_particle_once():
     np.testing.assert_array_equal(np.sort(out[:, 0]), p[:, 0])
 
 
+# -- Bayes filter and normalization ----------------------------------------------------
+@pytest.mark.parametrize("scale", [5e-324, 1e-310, 1e-300, 1e-100, 1.0, 1e100, 1e300, 8e307])
+def test_bayes_posteriors_and_normalize_depend_only_on_likelihood_ratios(scale):
+    from solutions import bayes, demo
+
+    ratios = np.array([1.0, 2.0, 0.0, 1.0])
+    prior = np.array([0.1, 0.2, 0.3, 0.4])
+    ref = ratios * prior / np.sum(ratios * prior)
+    like = ratios * scale  # the sum overflows at 8e307, the products underflow below 1e-300
+    np.testing.assert_allclose(bayes.bayes_posterior(like, prior), ref, rtol=1e-12)
+    np.testing.assert_allclose(bayes.bayes_filter_step(prior, np.eye(4), like), ref, rtol=1e-12)
+    np.testing.assert_allclose(demo.normalize(like), ratios / ratios.sum(), rtol=1e-12)
+
+
 # -- mcl --------------------------------------------------------------------------------------
 @pytest.mark.parametrize("epsilon", MAGNITUDES)
 @pytest.mark.parametrize("k", [1, 2, 100, 10_000])
@@ -121,6 +135,32 @@ def test_kld_sample_size_never_wraps_to_negative():
 @pytest.mark.parametrize("spread", MAGNITUDES)
 def test_normalize_log_weights_sums_to_one_at_any_spread(spread):
     w = mcl.normalize_log_weights(np.array([-spread, 0.0, spread, spread]))
+    assert np.all(np.isfinite(w)) and np.isclose(w.sum(), 1.0)
+
+
+@pytest.mark.parametrize("sigma", [5e-324, 1e-310, 1e-300, 1e-30, 1e-3, 1.0, 1e30, 1e300])
+@pytest.mark.parametrize("max_dist", [1e-300, 1.0, 1e300])
+def test_likelihood_field_model_is_finite_or_refuses_sigma(sigma, max_dist):
+    data = np.zeros((40, 40))
+    data[:, 30] = 1.0
+    grid = OccupancyGrid(data, 0.05)
+    scan = {
+        "ranges": np.array([1.0, 1.2]),
+        "angles": np.array([0.0, 0.3]),
+        "range_min": 0.1,
+        "range_max": 5.0,
+    }
+    try:
+        field = mcl.likelihood_field(grid, sigma, max_dist)
+    except ValueError as exc:
+        assert "sigma_hit" in str(exc) and sigma < 1e-300
+        return
+    assert np.all(np.isfinite(field["likelihood"]))
+    out = mcl.likelihood_field_model(
+        scan, np.array([[0.5, 1.0, 0.0], [0.3, 1.0, 0.1]]), field, mcl.DEFAULT_PARAMS
+    )
+    assert np.all(np.isfinite(out))
+    w = mcl.normalize_log_weights(out)
     assert np.all(np.isfinite(w)) and np.isclose(w.sum(), 1.0)
 
 

@@ -48,11 +48,12 @@ def test_fastslam_on_freiburg_maps_the_landmarks_with_and_without_ess(freiburg, 
 
 
 def test_fastslam_ess_none_is_the_old_behaviour(freiburg):
-    """ess_threshold=None and a step function without the parameter give the same run."""
+    """ess_threshold=None is resample=True: the same run as a step that always resamples."""
     from robolab.realdata.fastslam import run_fastslam_freiburg
     from solutions.fastslam import fastslam_step
 
-    def old_step(state, command, observations, Q, Qt, rng, dt=1.0):
+    def old_step(state, command, observations, Q, Qt, rng, dt=1.0, resample=True):
+        assert resample is True
         return fastslam_step(state, command, observations, Q, Qt, rng, dt)
 
     a = run_fastslam_freiburg(freiburg, 30, np.random.default_rng(4), ess_threshold=None)
@@ -75,7 +76,7 @@ def test_fastslam_step_resamples_exactly_when_the_ess_is_low(qt_scale):
         args = (state, [0.2, 0.0], [[1.8, 0.35, 0]], q, qt)
         # the same rng stream up to the resampling: the same importance weights
         w = fastslam_step(*args, np.random.default_rng(seed), resample=False)["weights"]
-        new = fastslam_step(*args, np.random.default_rng(seed), ess_threshold=0.5)
+        new = fastslam_step(*args, np.random.default_rng(seed), resample=0.5)
         low = 1.0 / np.sum(w**2) < 0.5 * 50
         resampled = bool(np.all(new["weights"] == 1 / 50))
         assert resampled == low
@@ -87,8 +88,9 @@ def test_fastslam_step_resamples_exactly_when_the_ess_is_low(qt_scale):
         assert all(outcomes)
     if qt_scale >= 100:
         assert not any(outcomes)
-    with pytest.raises(ValueError, match="ess_threshold"):
-        fastslam_step(state, [0.2, 0.0], None, q, qt, np.random.default_rng(0), ess_threshold=1.5)
+    for bad in (1.5, 0.0, -0.5):
+        with pytest.raises(ValueError, match="resample"):
+            fastslam_step(state, [0.2, 0.0], None, q, qt, np.random.default_rng(0), resample=bad)
 
 
 # -- lab 04: mapping the Intel lab -----------------------------------------------------------

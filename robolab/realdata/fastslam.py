@@ -51,9 +51,8 @@ def run_fastslam_freiburg(
         reference solution's.
     ess_threshold : float or None
         Resample when the effective sample size falls below ``ess_threshold * M``
-        (default 0.5); None resamples after every step with an observation (the
-        book). Only passed on when not None, so a ``fastslam_step`` without the
-        parameter runs with None.
+        (default 0.5), passed as ``fastslam_step``'s ``resample``; None resamples
+        after every step with an observation (the book, ``resample=True``).
     motion_noise : (sigma_r1, sigma_t, sigma_r2)
     Qt : array_like, shape (2, 2)
 
@@ -78,12 +77,12 @@ def run_fastslam_freiburg(
     q_drive = np.diag([s_t**2, s_t**2, s_r2**2])
     k = len(data.landmark_ids)
     state = init_particles(n, k, np.zeros(3), "first_observation")
-    extra = {} if ess_threshold is None else {"ess_threshold": ess_threshold}
+    resample = True if ess_threshold is None else float(ess_threshold)
     path, resamples, seen = [_mean_pose(state)], 0, np.zeros(k, dtype=bool)
     for i, (r1, t, r2) in enumerate(data.odometry):
         state = fastslam_step(state, [0.0, r1], None, q_turn, Qt, rng, 1.0)
         obs = data.indexed_observations(i)
-        state = fastslam_step(state, [t, r2], obs, q_drive, Qt, rng, 1.0, **extra)
+        state = fastslam_step(state, [t, r2], obs, q_drive, Qt, rng, 1.0, resample)
         if len(obs):
             seen[obs[:, 2].astype(np.intp)] = True
             resamples += bool(np.all(state["weights"] == state["weights"][0]))
