@@ -26,10 +26,18 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
+# The solved notebooks run in a fresh venv that has only the student edition's wheel
+# (plus pytest and nbval), from their own folder: the labs work without the repository.
+STUDENT_VENV := build/student-venv
+
 test: $(STAMP)
 	$(BIN)/python -m pytest
 	$(BIN)/robolab solve notebooks/ -o build/solved
-	$(BIN)/python -m pytest --nbval-lax --nbval-cell-timeout=120 -p no:cacheprovider build/solved -o testpaths=build/solved -o addopts=""
+	$(BIN)/python tools/add_figure_audit.py build/solved
+	$(BIN)/robolab release build/student
+	rm -rf $(STUDENT_VENV) && $(PYTHON) -m venv $(STUDENT_VENV)
+	$(STUDENT_VENV)/bin/python -m pip install --quiet --disable-pip-version-check build/student/dist/robolab-*.whl pytest nbval
+	cd build/solved && ../student-venv/bin/python -m pytest --nbval-lax --nbval-current-env --nbval-cell-timeout=120 -p no:cacheprovider . -o testpaths=. -o addopts=""
 
 grade: $(STAMP)
 	$(BIN)/robolab grade examples/submissions/*/*.ipynb --out grades/ -j 2

@@ -24,7 +24,7 @@
 # them has to put a laser reading *somewhere*: in front of the laser, on the robot, in
 # the world. This lab is about exactly that, and nothing else.
 #
-# The seed is the AMCL project's report (seed 000, task 1). AMCL, when it is not run on
+# The setting is ROS's AMCL localization node. AMCL, when it is not run on
 # a live robot, is fed by a function `processBag` that opens a recorded **bag**, keeps the
 # messages of two topics, `/tf` and `base_scan`, and re-publishes them in time order, as
 # if the robot were driving now:
@@ -109,7 +109,7 @@ ax = plot_message_timeline(record_times, start=start, duration=0.5,
 # ticks at 20 Hz + 10 Hz = 30 Hz.
 #
 # Now replay the bag the way `processBag` does: keep `/tf` and `base_scan` (without the
-# leading slash, as the seed writes it: `robolab.bag` matches topic names with or without
+# leading slash, as AMCL's `processBag` writes it: `robolab.bag` matches topic names with or without
 # it) and dispatch on each message's type. Instead of re-publishing, count what each
 # message carries.
 
@@ -534,7 +534,7 @@ cloud_true, time_true = place_scans(laser_true)
 print(f"{len(chosen)} scans, {len(cloud_odom)} endpoints")
 
 # %%
-fig, (ax_odom, ax_true) = plt.subplots(1, 2, figsize=(16, 6))
+fig, (ax_odom, ax_true) = plt.subplots(1, 2, figsize=(13, 5.2))
 plot_scan_cloud(cloud_odom, time_odom, ax_odom, grid=grid, path=robot_odom, vmax=DURATION,
                 title="Scans placed with raw odometry (first 60 s)")
 plot_scan_cloud(cloud_true, time_true, ax_true, grid=grid, path=robot_true, vmax=DURATION,

@@ -24,7 +24,7 @@
 # distribution over the states, and updates it with every measurement and every action.
 # This lab builds that machinery from one line of probability theory:
 #
-# 1. **Bayes' rule** on the seed's door problem (robotics lab #4, part 1): a sensor
+# 1. **Bayes' rule** on a door problem: a sensor
 #    reports $z = 42$; how likely is the door open?
 # 2. **The discrete Bayes filter** (Probabilistic Robotics, Table 2.1 and its discrete
 #    form, Table 4.1) on the book's door example of section 2.4.2.
@@ -143,7 +143,7 @@ checks.check_bayes_posterior(bayes_posterior)
 
 # %% tags=["exercise"]
 def door_open_posterior(p_z_given_open, p_z_given_closed, p_open):
-    r"""Probability that the door is open after a measurement ``z`` (the seed's door problem).
+    r"""Probability that the door is open after a measurement ``z`` (the door problem of section 1).
 
     With the two states open and :math:`\neg` open (closed), Bayes' rule and
     the total probability
@@ -413,7 +413,7 @@ ax.plot(x[truths], np.arange(steps + 1), "w.", ms=5, label="true position")
 for lo, hi in DOORS:
     ax.axvspan(lo, hi, color="tab:orange", alpha=0.15, lw=0)
 ax.figure.colorbar(im, ax=ax, label="bel(x)")
-ax.legend(loc="upper right")
+ax.legend(loc="upper right");
 
 # %% [markdown]
 # **Question 3.** After the first "door" the belief has three peaks. Why three, and why

@@ -32,9 +32,9 @@
 #    (c) a failure reported as the maximum range, (d) a random reading;
 # 3. beams are independent given the pose, so the scan's likelihood is a product over beams.
 #
-# This lab follows the measurement-model lab (seed 001) and ends with its **challenge** on the
+# This lab builds the model step by step and ends with a **challenge** on the
 # maze, then compares the exact model with the ad-hoc combination that ROS's AMCL uses
-# (seed 000, listing 2.2).
+# (`BeamModel` in AMCL's `amcl_laser.cpp`).
 #
 # You write six functions: `p_hit`, `p_short`, `p_max`, `p_rand`, `beam_range_finder_model`
 # and `pose_likelihood_map`. A check cell after each exercise tests your code on a worked
@@ -70,7 +70,7 @@ from robolab.validation import as_array, check_positive
 # | `lambda_short` | rate $\lambda_{short}$ of unexpected objects [1/m] |
 # | `max_range` | the sensor's maximum range $z_{max}$ [m] |
 #
-# The four density functions take the **range** as their `z_max` argument, as in the seed.
+# The four density functions take the **range** as their `z_max` argument.
 
 # %%
 PARAMS = {
@@ -356,7 +356,7 @@ def p_rand(z, z_max):
 checks.check_p_rand(p_rand)
 
 # %% [markdown]
-# ### The four error models (seed 001's figure)
+# ### The four error models (Probabilistic Robotics, Figure 6.3)
 #
 # Each component for $z^* = 3$ m on $[0, z_{max}]$:
 
@@ -487,7 +487,7 @@ checks.check_beam_range_finder_model(beam_range_finder_model)
 # %% [markdown]
 # ### The final distribution
 #
-# The mixture for one beam with $z^* = 3$ m, the shape of seed 001's "final distribution".
+# The mixture for one beam with $z^* = 3$ m, the shape of the book's Figure 6.4.
 # Its continuous part integrates to $1 - z_{max}$-weight over $[0, z_{max})$; the point mass at
 # $z_{max}$ carries the rest.
 
@@ -506,11 +506,11 @@ print(f"p(z = z_max)             = {point_mass:.5f}  (the z_max weight plus a ne
 # %% [markdown]
 # ## The challenge: the robot in the maze
 #
-# Seed 001's challenge: *import the map, position the robot, read from the sensor, ray cast at
+# The challenge: *import the map, position the robot, read from the sensor, ray cast at
 # the sensor's angles and position, compute the probabilities, output $q$.*
 #
 # `load_maze()` returns the bundled maze as an `OccupancyGrid` (5 cm cells, origin at the
-# lower-left corner). Following the seed's tip, the maze parameters use a high $z_{hit}$ and
+# lower-left corner). Because the maze has no people or furniture in it, the maze parameters use a high $z_{hit}$ and
 # small weights for the other sources; the lidar has 60 beams, 6 degrees apart, all around.
 
 # %%
@@ -555,9 +555,9 @@ bplot.plot_scan_on_map(maze, TRUE_POSE, scan, BEAMS, MAZE_PARAMS["max_range"], e
 plt.show()
 
 # %% [markdown]
-# ### Ray casting, the seed's way and the fast way
+# ### Ray casting, one beam at a time and all at once
 #
-# The seed provides `castraysingle(xc, yc, theta, map, lidarrange)`: one beam, in **pixel**
+# `robolab.raycast` provides `castraysingle(xc, yc, theta, map, lidarrange)`: one beam, in **pixel**
 # units, with `theta` absolute (not relative to the heading). Looping over the beams with it
 # gives the same ranges as `cast_rays(grid, poses, angles, max_range)`, which works in metres
 # for many poses and beams at once:
@@ -611,7 +611,7 @@ print("Two different poses, both q = 0.0: a particle filter could not tell them 
 
 
 # %% [markdown]
-# ## AMCL's ad-hoc combination (seed 000, listing 2.2)
+# ## AMCL's ad-hoc combination (`BeamModel` in `amcl_laser.cpp`)
 #
 # ROS's AMCL computes, per beam, an **unnormalized** mixture
 #
@@ -776,6 +776,20 @@ plt.show()
 # particles and several scans.
 
 # %% [markdown]
+# ### Try it: the mixture against the map
+#
+# The sliders rerun *your* `beam_range_finder_model` and `pose_likelihood_map` (on a 25 cm lattice,
+# so that a redraw is quick; the weights are normalized to sum to 1). Without Jupyter widgets you see
+# the figure at the defaults. Things to try: $z_{rand} \to 0$ with a small $\sigma_{hit}$ (what happens
+# to the secondary spots, and to the true pose?); a large $z_{short}$ with a large $\lambda_{short}$.
+
+# %%
+from robolab.plotting.interactive import beam_model_explorer
+
+beam_model_explorer(beam_range_finder_model, pose_likelihood_map, scan, maze, BEAMS, COARSE_PARAMS,
+                    true_pose=TRUE_POSE);
+
+# %% [markdown]
 # ## Questions
 #
 # 1. The integrals above are 1 for every $z^*$, $\sigma_{hit}$ and $\lambda_{short}$. What
@@ -791,7 +805,7 @@ plt.show()
 #
 # *Your answer here.*
 #
-# 3. Seed 001's tip says to use a very high $z_{hit}$ and very low weights for unexpected
+# 3. The maze parameters use a very high $z_{hit}$ and very low weights for unexpected
 #    objects. When is that a good idea, and what happens to the localization when a person
 #    walks past the robot with these weights?
 #

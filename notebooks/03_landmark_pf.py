@@ -23,7 +23,7 @@
 # A robot drives through a **cyclic** 100 m x 100 m world (leave it on the right, come back on the left)
 # with four landmarks. It knows its commands, which are noisy, and it measures its **range to every landmark**,
 # also noisily. You will localize it with a **particle filter** (Probabilistic Robotics, Table 4.3) and
-# **low-variance resampling** (Table 4.4), following the seed exercise step by step (sections a to g), and then
+# **low-variance resampling** (Table 4.4), step by step (sections a to g below), and then
 # find out where the filter breaks.
 #
 # Everything you implement works on **all particles at once**: particles are an `(N, 3)` array of poses
@@ -44,12 +44,12 @@ from robolab.plotting.landmark_pf import (plot_count_variance, plot_deprivation,
                                           plot_filter_run, plot_paths, plot_world_and_robots)
 from robolab.checks import landmark_pf as checks
 
-SEED = 2024  # one seed for the whole notebook: rerunning gives the same figures
+SEED = 2024  # one random seed for the whole notebook: rerunning gives the same figures
 
 # %% [markdown]
 # ## a. The world and the robot
 #
-# `cWorld()` holds the landmarks (the seed does not list them; robolab uses the classic layout
+# `cWorld()` holds the landmarks (robolab uses the classic layout
 # $(20, 20), (80, 80), (20, 80), (80, 20)$). `cRobot(rng=...)` is one robot with a pose and noise parameters;
 # `set(x, y, theta)` places it (x and y must lie in $[0, 100)$).
 
@@ -78,7 +78,7 @@ plot_world_and_robots(world, robots);
 # \end{aligned}
 # $$
 #
-# Two remarks on the seed's MATLAB `move`:
+# Two remarks on a `move` function often given for this exercise (`cRobot.move` in MATLAB):
 #
 # * it draws **two** forward-noise samples, one for $x$ and one for $y$. Then the robot no longer moves along its
 #   heading (try it: with $\sigma_{turn} = 0$ its displacement still points in a random direction). That is a bug:
@@ -92,9 +92,9 @@ plot_world_and_robots(world, robots);
 def move_particles(
     particles, u_rotation, u_translation, forward_noise, turn_noise, rng, world_size=100
 ):
-    """Move every particle with the seed's noisy rotate-then-translate model.
+    """Move every particle with the noisy rotate-then-translate model.
 
-    Seed 002, section b, for all particles at once; the rotation/translation
+    Section b of this lab, for all particles at once; the rotation/translation
     motion model is Probabilistic Robotics' ``sample_motion_model_odometry``
     (Table 5.6) with no final rotation. For each particle ``i``, independently:
 
@@ -108,7 +108,7 @@ def move_particles(
         y_i' = (y_i + d_i \\sin\\theta_i') \\bmod S
 
     One forward-noise sample per particle moves it along its new heading (the
-    seed draws one for x and another for y, which is a bug). Headings are
+    MATLAB ``move`` draws one for x and another for y, which is a bug). Headings are
     wrapped to ``[-pi, pi)``, positions to ``[0, S)`` (the cyclic world).
 
     Parameters
@@ -149,7 +149,7 @@ start = np.tile([30.0, 30.0, 0.0], (2000, 1))
 fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
 for ax, (fwd, turn) in zip(axes, [(5.0, 0.02), (1.0, 0.3)]):
     moved = move_particles(start, np.pi / 4, 40.0, fwd, turn, np.random.default_rng(SEED))
-    ax.scatter(moved[:, 0], moved[:, 1], s=2, alpha=0.4, label="moved particles")
+    ax.scatter(moved[:, 0], moved[:, 1], s=4, alpha=0.4, label="moved particles")
     ax.plot(30, 30, "ko", label="start (30, 30, 0)")
     ax.set_title(f"u = (pi/4, 40): forward_noise {fwd}, turn_noise {turn}")
     ax.set_xlabel("x [m]"); ax.set_ylabel("y [m]"); ax.set_aspect("equal", adjustable="datalim"); ax.legend()
@@ -159,7 +159,7 @@ fig.suptitle("Samples of the motion model");
 # ## c. Sensing
 #
 # `cRobot.sense(world)` returns the range to each landmark plus independent noise $\mathcal N(0, \sigma_{sense}^2)$.
-# Like the seed, it uses the **plain Euclidean distance**, without the cyclic wrap: a robot at $x = 95$ is 75 m
+# It uses the **plain Euclidean distance**, without the cyclic wrap: a robot at $x = 95$ is 75 m
 # from a landmark at $x = 20$, not 25 m (it sees the landmark "through" the world, not around it).
 
 # %%
@@ -181,12 +181,12 @@ print("measured ranges:          ", np.round(robots[0].sense(world), 2))
 # \qquad \hat r^{[i]}_k = \left\lVert (x^{[i]}, y^{[i]}) - l_k \right\rVert .
 # $$
 #
-# Measure $\hat r$ as the seed does (plain Euclidean, no wrap). Hint: broadcasting an `(N, 1)` against a `(K,)`
+# Measure $\hat r$ as `cRobot.sense` does (plain Euclidean, no wrap). Hint: broadcasting an `(N, 1)` against a `(K,)`
 # array gives all `(N, K)` differences at once.
 
 # %% tags=["exercise"]
 def measurement_probability(measured_ranges, particles, landmarks, sensor_noise):
-    """Likelihood of the measured ranges for every particle (seed 002, section d).
+    """Likelihood of the measured ranges for every particle (section d).
 
     The ranges to the ``K`` landmarks are independent given the pose, so their
     joint density is the product of Gaussian densities (Probabilistic Robotics,
@@ -200,7 +200,7 @@ def measurement_probability(measured_ranges, particles, landmarks, sensor_noise)
         \\qquad \\hat r_{i,k} = \\lVert (x_i, y_i) - l_k \\rVert
 
     ``r_hat`` is the plain Euclidean distance, **without** the cyclic wrap,
-    exactly as the seed (and :meth:`robolab.world.cRobot.sense`) measures it.
+    exactly as :meth:`robolab.world.cRobot.sense` measures it.
     The heading does not enter.
 
     Parameters
@@ -268,7 +268,7 @@ for u_rot, u_trans in U:
     robot.move(u_rot, u_trans)
     command_path.append([robot.x, robot.y])
 command_path = np.array(command_path)
-plot_paths(world, {"command": (command_path, "k:o")}, title="Intended path (seed section e)");
+plot_paths(world, {"command": (command_path, "k:o")}, title="Intended path (section e)");
 
 
 # %% [markdown]
@@ -293,7 +293,7 @@ def simulate(seed, noise=(5.0, 0.1, 5.0)):
 true_path, measurements = simulate(SEED)
 print("measurements (one row per step, one column per landmark):\n", np.round(measurements, 1))
 plot_paths(world, {"command": (command_path, "k:o"), "true position": (true_path, "k-o")},
-           title="Command and true path (seed section f)");
+           title="Command and true path (section f)");
 
 
 # %% [markdown]
@@ -389,7 +389,7 @@ def particle_filter(
     world_size=100,
     return_history=False,
 ):
-    """The particle filter of seed 002, section g (Probabilistic Robotics Table 4.3).
+    """The particle filter of section g (Probabilistic Robotics Table 4.3).
 
     All particles start at the known ``initial_pose``. For every step ``t``:
 
@@ -397,7 +397,7 @@ def particle_filter(
     2. weight: ``w_t^[i] = p(z_t | x_t^[i], m)`` with :func:`measurement_probability`;
     3. resample with :func:`low_variance_resample` (Table 4.4);
     4. estimate the position as the mean of the resampled, equally weighted
-       particles, ``(mean x, mean y)`` (as the seed; the plain mean ignores the
+       particles, ``(mean x, mean y)`` (the plain mean ignores the
        cyclic wrap, fine while the cloud stays away from the edges).
 
     If every weight of a step is 0 (the measurement is impossible for all
@@ -421,7 +421,7 @@ def particle_filter(
     rng : numpy.random.Generator
         Source of every random number.
     initial_pose : sequence of 3 floats, optional
-        The known start ``(x, y, theta)``, default the seed's ``(10, 15, 0)``.
+        The known start ``(x, y, theta)``, default ``(10, 15, 0)``.
     world_size : float, optional
         Side of the cyclic world (default 100; a cWorld's own size wins).
     return_history : bool, optional
@@ -447,15 +447,20 @@ checks.check_particle_filter(particle_filter)
 NOISE = {"forward_noise": 5.0, "turn_noise": 0.1, "sensor_noise": 5.0}
 history = particle_filter(world, U, measurements, 1000, NOISE, np.random.default_rng(SEED), return_history=True)
 plot_filter_run(world, history, command_path, true_path, measurements=measurements,
-                title="Particle filter, N = 1000 (seed section g)")
+                title="Particle filter, N = 1000 (section g)")
 errors = np.linalg.norm(history["path"] - true_path, axis=1)
+command_errors = np.linalg.norm(command_path - true_path, axis=1)
 print("position error per step [m]:", np.round(errors, 2))
-print("command path error per step [m]:", np.round(np.linalg.norm(command_path - true_path, axis=1), 2))
+print("command path error per step [m]:", np.round(command_errors, 2))
+worst = int(np.argmax(errors))
+print(f"worst estimate: step {worst + 1} ({errors[worst]:.2f} m); "
+      f"mean error of the filter {errors.mean():.2f} m against {command_errors.mean():.2f} m "
+      "for the command path")
 
 # %% [markdown]
-# **Question.** The first estimate (after the 60 m move) is noticeably worse than the later ones. Look at the
-# projected particles of step 1 and at where the landmark rings cross: why? And why is the estimate after a
-# few steps much better than the command path?
+# **Question.** Which step has the worst estimate (printed above)? Look at the projected particles of that
+# step and at where the landmark rings cross: why is it worse there? And why are the filter's estimates after
+# a few steps much better than the command path?
 #
 # *Your answer here.*
 
@@ -463,7 +468,7 @@ print("command path error per step [m]:", np.round(np.linalg.norm(command_path -
 # ## How many particles?
 #
 # The filter is a Monte Carlo approximation: more particles, better approximation, more time. Run it for several
-# $N$ and several seeds on the same true path.
+# $N$ and several random seeds on the same true path.
 
 # %%
 ns = np.array([10, 30, 100, 300, 1000, 3000])
@@ -471,13 +476,31 @@ seeds = range(8)
 final_err = np.array([[np.linalg.norm(particle_filter(world, U, measurements, n, NOISE,
                                                       np.random.default_rng(s))[-1] - true_path[-1])
                        for s in seeds] for n in ns])
-plot_error_vs_particles(ns, final_err, title="Final position error against N (8 seeds per N)");
+plot_error_vs_particles(ns, final_err, title="Final position error against N (8 runs per N)");
 
 # %% [markdown]
 # **Question.** Why does the error stop decreasing beyond a few hundred particles? (Hint: what does the filter
 # estimate — the true position, or something else?)
 #
 # *Your answer here.*
+
+# %% [markdown]
+# ### Watch it, then try it
+#
+# The replay below steps through the run of section g: the predicted particles (orange), the resampled ones
+# (red), and the estimate against the true path. The sliders after it rerun *your* `particle_filter` with
+# other noise levels and particle counts (without Jupyter widgets: one figure at the defaults). Try a
+# sensor noise of 1 m with 100 particles, then 10 000 particles.
+
+# %%
+from robolab.plotting.animation import animate_landmark_pf, show_animation
+
+show_animation(animate_landmark_pf(world, history, true_path))
+
+# %%
+from robolab.plotting.interactive import landmark_pf_explorer
+
+landmark_pf_explorer(particle_filter, world, U, measurements, true_path, seed=SEED);
 
 # %% [markdown]
 # ## Low-variance against multinomial resampling

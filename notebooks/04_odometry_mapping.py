@@ -22,8 +22,8 @@
 #
 # A robot drove 80 s through an office, recording laser scans (`/base_scan`, 360 beams, 10 Hz) and its
 # **wheel odometry** (`/odom`). If we knew exactly where the robot was at every scan, building a map would be easy:
-# draw every beam into a grid. This lab does exactly that with the **simple counting algorithm** (seed 004,
-# part 2, "Mapping with Raw Odometry"), trusting the odometry as if it were the truth, and then asks the seed's
+# draw every beam into a grid. This lab does exactly that with the **simple counting algorithm**,
+# trusting the odometry as if it were the truth, and then asks the lab's
 # question: **why does the resulting map differ so much from reality?**
 #
 # The bundled bag was made by robolab's simulator, so it also has what a real robot never has: the
@@ -34,11 +34,11 @@
 #
 # 1. from a scan and a pose to beam endpoints in the world (`scan_endpoints`);
 # 2. the grid cells a beam passes through (`beam_cells`);
-# 3. the counting map: hits / visits per cell (`counting_map_update`, `occupancy_from_counts`) and the seed's
+# 3. the counting map: hits / visits per cell (`counting_map_update`, `occupancy_from_counts`) and
 #    clipping at 0.5 (`clip_map`);
-# 4. the map from raw odometry at 2 s, 8 s and 20 s (seed 004, figures 1 and 2), then from the ground truth;
+# 4. the map from raw odometry at 2 s, 8 s and 20 s, then from the ground truth;
 # 5. odometry drift against time: the answer, with evidence;
-# 6. beyond the seed: the log-odds occupancy grid with the inverse range sensor model (Probabilistic Robotics,
+# 6. one step further: the log-odds occupancy grid with the inverse range sensor model (Probabilistic Robotics,
 #    Tables 9.1 and 9.2).
 #
 # Units: metres, radians, seconds. Frames follow ROS: `map`, `odom`, `base_link`, `base_laser_link`.
@@ -59,7 +59,7 @@ from robolab.plotting.odometry_mapping import (plot_beam_cells, plot_map_compari
                                                plot_trajectories)
 from robolab.checks import odometry_mapping as checks
 
-SNAPSHOTS = [2.0, 8.0, 20.0]  # seconds, as in seed 004's figures
+SNAPSHOTS = [2.0, 8.0, 20.0]  # seconds: the three snapshots of section 4
 
 # %% [markdown]
 # ## 0. The data
@@ -286,7 +286,7 @@ plot_beam_cells(start, ends, cells, beam, title="Cells touched by four beams fro
 
 # %% tags=["exercise"]
 def counting_map_update(hits, visits, scan, pose, grid):
-    r"""Integrate one scan into the counting map (seed 004, the simple counting algorithm).
+    r"""Integrate one scan into the counting map (the simple counting algorithm).
 
     Every cell keeps two counters: ``visits``, how many beams passed through
     or ended in it, and ``hits``, how many beams ended in it. The map is
@@ -365,7 +365,7 @@ checks.check_occupancy_from_counts(occupancy_from_counts)
 
 
 # %% [markdown]
-# The seed clips the counting map at 0.5: below is free (0), at or above is occupied (1). Unknown stays unknown.
+# Clipping turns the counting map into a binary map at 0.5: below is free (0), at or above is occupied (1). Unknown stays unknown.
 #
 # $$
 # \hat m_i = \begin{cases} 1 & m_i \ge 0.5 \\ 0 & 0 \le m_i < 0.5 \\ -1 & \text{unknown} \end{cases}
@@ -373,7 +373,7 @@ checks.check_occupancy_from_counts(occupancy_from_counts)
 
 # %% tags=["exercise"]
 def clip_map(occupancy, threshold=0.5):
-    r"""Clip an occupancy map to 0 / 1 at ``threshold`` (the seed's clipping); unknown stays -1.
+    r"""Clip an occupancy map to 0 / 1 at ``threshold``; unknown stays -1.
 
     .. math::
 
@@ -403,7 +403,7 @@ def clip_map(occupancy, threshold=0.5):
 checks.check_clip_map(clip_map)
 
 # %% [markdown]
-# ## 4. The map from raw odometry (seed 004, figures 1 and 2)
+# ## 4. The map from raw odometry
 #
 # Now the whole bag: one `counting_map_update` per scan with the laser pose from **raw odometry**, keeping copies
 # of the map at 2 s, 8 s and 20 s. The map has the geometry (resolution, origin) of the true floor plan, so the two
@@ -434,9 +434,9 @@ def upto(poses, s):
 maps = [odom_snaps[s] for s in SNAPSHOTS] + [odom_map]
 labels = [f"t = {s:.0f} s" for s in SNAPSHOTS] + [f"t = {t[-1]:.0f} s (end)"]
 paths = [upto(odom_poses, s) for s in SNAPSHOTS] + [odom_poses]
-plot_map_snapshots(maps, labels, paths=paths, title="Counting map from raw odometry, without clipping (seed 004, figure 2)")
+plot_map_snapshots(maps, labels, paths=paths, title="Counting map from raw odometry, without clipping")
 plot_map_snapshots([m.with_data(clip_map(m.data)) for m in maps], labels, paths=paths,
-                   title="Counting map from raw odometry, clipped at 0.5 (seed 004, figure 1)");
+                   title="Counting map from raw odometry, clipped at 0.5");
 
 # %% [markdown]
 # ## 5. The same bag with the ground-truth poses
@@ -501,7 +501,7 @@ for s in SNAPSHOTS + [t[-1]]:
 #
 # *Your answer here.*
 #
-# **Question 2.** The seed suggests "a more accurate robot pose generation, for example using the laser scanner as an
+# **Question 2.** A natural fix is "a more accurate robot pose generation, for example using the laser scanner as an
 # additional localization tool". Which of the following labs does that, and what does it need that this lab did not
 # have?
 #
@@ -514,7 +514,7 @@ for s in SNAPSHOTS + [t[-1]]:
 # *Your answer here.*
 
 # %% [markdown]
-# ## 7. Beyond the seed: log-odds occupancy grid mapping
+# ## 7. One step further: log-odds occupancy grid mapping
 #
 # The counting map has no notion of how *sure* it is. Occupancy grid mapping (Probabilistic Robotics, Table 9.1)
 # keeps for each cell the **log-odds** of being occupied and adds the evidence of each scan:

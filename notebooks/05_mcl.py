@@ -24,9 +24,9 @@
 # drifts, and a 360-beam laser scanner. **Monte Carlo localization** (MCL, Probabilistic Robotics Table 8.2)
 # represents its belief by particles, moves them with the **odometry motion model** (Table 5.6), weighs them
 # with the **likelihood field** of the laser (Table 6.3) and **resamples** (Table 4.4). You will build it step
-# by step, as in seed 004 (part 3), run it over the bundled bag `data/localization.bag` against its ground
+# by step, run it over the bundled bag `data/localization.bag` against its ground
 # truth — once from a uniform start (**global localization**) and once from a Gaussian around the known
-# start (**tracking**) — and then add two things the ROS `amcl` package does beyond the seed (seed 000):
+# start (**tracking**) — and then add two things the ROS `amcl` package does beyond the basic algorithm:
 # **KLD-sampling** (adaptive particle counts, Table 8.4) and **recovery** from a kidnapping (augmented MCL,
 # Table 8.3).
 #
@@ -46,7 +46,7 @@ from robolab.plotting import plot_map, plot_particles, plot_poses
 from robolab.plotting import mcl as mclplot
 from robolab.checks import mcl as checks
 
-SEED = 5  # one seed for the whole notebook: rerunning gives the same figures
+SEED = 5  # one random seed for the whole notebook: rerunning gives the same figures
 
 # %% [markdown]
 # ## The data
@@ -175,9 +175,9 @@ checks.check_init_gaussian(init_gaussian)
 # %%
 rng = np.random.default_rng(SEED)
 ax = plot_map(grid, title="Initial particles: uniform (global) and Gaussian (tracking)")
-plot_particles(init_uniform(grid, 3000, rng), ax=ax, size=2, label="uniform, 3000")
+plot_particles(init_uniform(grid, 3000, rng), ax=ax, size=4, label="uniform, 3000")
 plot_particles(init_gaussian(data.truth[0], np.diag([0.1**2, 0.1**2, 0.1**2]), 300, rng), ax=ax,
-               color="tab:blue", size=3, label="Gaussian, 300")
+               color="tab:blue", size=5, label="Gaussian, 300")
 ax.legend(loc="lower right");
 
 
@@ -185,8 +185,8 @@ ax.legend(loc="lower right");
 # ## 3.2 The motion model
 #
 # Between two filter updates the odometry moved from $\bar x_{t-1} = (\bar x, \bar y, \bar\theta)$ to
-# $\bar x_t = (\bar x', \bar y', \bar\theta')$ (seed eq. 10). The motion is decomposed into a rotation, a
-# translation and a second rotation (eq. 11):
+# $\bar x_t = (\bar x', \bar y', \bar\theta')$ (Probabilistic Robotics, Table 5.6). The motion is decomposed into a rotation, a
+# translation and a second rotation (Table 5.6, lines 2-4):
 #
 # $$
 # \delta_{trans} = \sqrt{(\bar x' - \bar x)^2 + (\bar y' - \bar y)^2}, \qquad
@@ -203,17 +203,17 @@ ax.legend(loc="lower right");
 # \hat\delta_{rot2} = \delta_{rot2} - \varepsilon(\alpha_1 \delta_{rot2}^2 + \alpha_2 \delta_{trans}^2)
 # $$
 #
-# and moves (eq. 13): $x' = x + \hat\delta_{trans}\cos(\theta + \hat\delta_{rot1})$,
+# and moves (Table 5.6, lines 8-10): $x' = x + \hat\delta_{trans}\cos(\theta + \hat\delta_{rot1})$,
 # $y' = y + \hat\delta_{trans}\sin(\theta + \hat\delta_{rot1})$,
 # $\theta' = \theta + \hat\delta_{rot1} + \hat\delta_{rot2}$.
 #
-# > **Careful with the seed's eq. 12.** It writes the noise as
+# > **Careful with a common rewriting of Table 5.6.** Some handouts write the noise as
 # > $\varepsilon_{\alpha_1|\delta_{rot2}| + \alpha_2|\delta_{trans}|}$: a *standard deviation* linear in the
 # > motion (that is what AMCL's old `diff` model does), and with $\delta_{rot2}$ in the noise of
 # > $\delta_{rot1}$. Table 5.6 uses **variances** $\alpha_1\delta_{rot1}^2 + \alpha_2\delta_{trans}^2$, so that
 # > $\alpha$ are dimensionless ratios. Implement Table 5.6.
 #
-# Two details from AMCL (seed 000, listing 2.1):
+# Two details from AMCL (`amcl_odom.cpp`):
 #
 # * **in-place rotation**: when $\delta_{trans} < 0.01$ m the bearing `atan2` of two almost equal positions is
 #   noise, so $\delta_{rot1} = 0$;
@@ -236,7 +236,7 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
         \delta_{rot1} = \operatorname{atan2}(\bar y' - \bar y, \bar x' - \bar x) - \bar\theta, \quad
         \delta_{rot2} = \bar\theta' - \bar\theta - \delta_{rot1}
 
-    (seed 004, eq. 11). AMCL's guard: when :math:`\delta_{trans} < 0.01` m
+    (Table 5.6, lines 2-4). AMCL's guard: when :math:`\delta_{trans} < 0.01` m
     the bearing of two nearly equal positions is noise, so
     :math:`\delta_{rot1} = 0` (an in-place rotation). Each particle gets its own
     noisy motion,
@@ -249,12 +249,12 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
         \hat\delta_{rot2} &= \delta_{rot2} - \varepsilon(\alpha_1 \delta_{rot2}^2 + \alpha_2 \delta_{trans}^2)
 
     where :math:`\varepsilon(b^2)` is a zero-mean Gaussian of **variance**
-    :math:`b^2`. (Seed 004's eq. 12 writes the noise as
+    :math:`b^2`. (Some handouts write the noise as
     :math:`\varepsilon_{\alpha_1|\delta_{rot2}| + \alpha_2|\delta_{trans}|}`: without
     the squares, i.e. as a standard deviation -- which is what AMCL's plain
     ``ODOM_MODEL_DIFF`` does -- and with :math:`\delta_{rot2}` in the noise of
     :math:`\delta_{rot1}`; Table 5.6 uses variances and :math:`\delta_{rot1}`.)
-    Then (eq. 13)
+    Then (Table 5.6, lines 8-10)
 
     .. math::
 
@@ -263,7 +263,7 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
         \theta' = \theta + \hat\delta_{rot1} + \hat\delta_{rot2}.
 
     With ``corrected=True`` this is AMCL's ``ODOM_MODEL_DIFF_CORRECTED``
-    (seed 000, listing 2.1): backward motion (:math:`\delta_{rot1} \approx \pm\pi`)
+    (``amcl_odom.cpp``): backward motion (:math:`\delta_{rot1} \approx \pm\pi`)
     is treated like forward motion in the noise, which uses
     :math:`\min(|\delta_{rot}|, |\pi - |\delta_{rot}||)` in place of
     :math:`|\delta_{rot}|` for both rotations (the means are unchanged).
@@ -311,13 +311,13 @@ path = [np.zeros(3), np.array([1.0, 0.0, 0.0]), np.array([2.0, 0.0, np.pi / 2]),
 clouds = np.zeros((2000, 3))
 for a, b in zip(path[:-1], path[1:]):
     clouds = sample_motion_model_odometry(clouds, a, b, alphas, rng)
-    axes[0].scatter(clouds[:, 0], clouds[:, 1], s=1, alpha=0.4, label=f"after odometry reaches {b[:2]}")
+    axes[0].scatter(clouds[:, 0], clouds[:, 1], s=4, alpha=0.4, label=f"after odometry reaches {b[:2]}")
 axes[0].set(title="Table 5.6: 2000 particles after three odometry steps", xlabel="x [m]", ylabel="y [m]", aspect="equal")
 axes[0].legend(fontsize=7, markerscale=5)
 for corrected, color in ((False, "tab:red"), (True, "tab:blue")):
     back = sample_motion_model_odometry(np.zeros((2000, 3)), [0, 0, 0], [-0.5, 0, 0], alphas,
                                         np.random.default_rng(SEED), corrected=corrected)
-    axes[1].scatter(back[:, 0], back[:, 1], s=1, alpha=0.4, color=color,
+    axes[1].scatter(back[:, 0], back[:, 1], s=4, alpha=0.4, color=color,
                     label=f"corrected={corrected}")
 axes[1].set(title="Backing up 0.5 m: plain vs AMCL diff-corrected", xlabel="x [m]", ylabel="y [m]", aspect="equal")
 axes[1].legend(markerscale=5)
@@ -329,8 +329,8 @@ fig.tight_layout()
 #
 # The **likelihood field** (Probabilistic Robotics section 6.4) pre-computes, for every cell, the distance
 # $d$ to the nearest obstacle: the Euclidean distance transform of the occupancy mask
-# (`scipy.ndimage.distance_transform_edt(~grid.occupied)`, in cells) times the **resolution** (seed 004's
-# detail 1: the map is in cells, the laser in metres), clipped at $d_{max}$ (AMCL's
+# (`scipy.ndimage.distance_transform_edt(~grid.occupied)`, in cells) times the **resolution** (the map is in
+# cells, the laser in metres), clipped at $d_{max}$ (AMCL's
 # `laser_likelihood_max_dist`). A beam endpoint at distance $d$ from an obstacle has the hit likelihood
 # $\mathcal N(d; 0, \sigma_{hit}^2) = \frac{1}{\sqrt{2\pi}\sigma_{hit}} e^{-d^2/2\sigma_{hit}^2}$.
 #
@@ -384,7 +384,7 @@ checks.check_likelihood_field(likelihood_field)
 # %%
 SIGMA_HIT, MAX_DIST = 0.1, 2.0
 field = likelihood_field(grid, SIGMA_HIT, MAX_DIST)
-mclplot.plot_likelihood_field(field, title="Likelihood field in log space (seed 004, figure 3)");
+mclplot.plot_likelihood_field(field, title="Likelihood field in log space");
 
 
 # %% [markdown]
@@ -405,7 +405,7 @@ mclplot.plot_likelihood_field(field, title="Likelihood field in log space (seed 
 #
 # * Beams that are not real returns are **skipped**: NaN, `inf` (nothing in range), below `range_min`, and
 #   **max-range** readings (`>= range_max`: a failed return says nothing about where the robot is).
-# * An endpoint **outside the map** (seed 004's detail 2) is scored as if it were at $d_{max}$: the smallest
+# * An endpoint **outside the map** is scored as if it were at $d_{max}$: the smallest
 #   per-beam likelihood, a penalty that keeps the particle alive but behind those whose beams land in the map.
 # * `params["max_beams"]` keeps every $\lfloor (B-1)/(\text{max\_beams}-1) \rfloor$-th beam, like AMCL.
 #
@@ -429,7 +429,7 @@ def likelihood_field_model(scan, particles, field, params):
         y_{z^k} = y_{laser} + z^k \sin(\theta_{laser} + \theta_k),
 
     looked up in the field (world -> cell with the map's resolution and origin,
-    seed 004's detail 1), and scored with the mixture
+    see above), and scored with the mixture
 
     .. math::
 
@@ -439,7 +439,7 @@ def likelihood_field_model(scan, particles, field, params):
     with :math:`z_{max}` the scan's ``range_max``. Beams that are not real
     returns (NaN, inf, outside ``[range_min, range_max)``: max-range readings
     carry no position information, AMCL skips them) are skipped. An endpoint
-    outside the map is scored as if at :math:`d_{max}` (seed 004's detail 2,
+    outside the map is scored as if at :math:`d_{max}` (as above,
     AMCL's ``max_occ_dist``): the smallest per-beam likelihood, a penalty that
     stays finite. ``params["max_beams"]`` keeps every ``(B - 1) // (max_beams - 1)``-th
     beam as AMCL does. The mixture is summed in log space, so the result is
@@ -565,7 +565,7 @@ checks.check_low_variance_resample(low_variance_resample)
 # likelihood of the scan (3.3), normalize, and resample (3.4) to uniform weights. Return
 # `(particles, weights, updated)`.
 #
-# AMCL does not update on every scan (seed 000, listing 1.2; the parameters in `params`):
+# AMCL does not update on every scan (its `update_min_d` and `update_min_a` parameters; here in `params`):
 #
 # * `update_min_d`, `update_min_a`: update only when the robot moved at least that far or turned at least that
 #   much since `odom_prev` (the odometry of the last update); otherwise return the inputs unchanged with
@@ -666,17 +666,17 @@ field_global = likelihood_field(grid, 0.3, MAX_DIST)
 N_GLOBAL, N_TRACK, GLOBAL_SEED = 3000, 1000, 16
 
 rng = np.random.default_rng(GLOBAL_SEED)
+REPLAY_TIMES = sorted({*mclplot.SNAPSHOT_TIMES, *np.arange(0.0, data.t[-1], 2.5)})  # for the replay below
 global_run = mclplot.run_mcl(data, mcl_step, init_uniform(grid, N_GLOBAL, rng), field_global, GLOBAL_PARAMS, rng,
-                             every=2, desc="global localization")
-mclplot.plot_snapshots(grid, global_run, title=f"Global localization: uniform start, {N_GLOBAL} particles "
-                       "(seed 004, figure 4)");
+                             every=2, desc="global localization", snapshot_times=REPLAY_TIMES)
+mclplot.plot_snapshots(grid, global_run, title=f"Global localization: uniform start, {N_GLOBAL} particles",
+                       times=[t for t in mclplot.SNAPSHOT_TIMES if t in global_run["snapshots"]]);
 
 # %%
 rng = np.random.default_rng(SEED)
 start = init_gaussian(data.truth[0], np.diag([0.1**2, 0.1**2, 0.1**2]), N_TRACK, rng)
 track_run = mclplot.run_mcl(data, mcl_step, start, field, PARAMS, rng, every=1, desc="tracking")
-mclplot.plot_snapshots(grid, track_run, title=f"Tracking: Gaussian start around the true pose, {N_TRACK} particles "
-                       "(seed 004, figure 5)");
+mclplot.plot_snapshots(grid, track_run, title=f"Tracking: Gaussian start around the true pose, {N_TRACK} particles");
 
 # %%
 mclplot.plot_errors({"global (uniform start)": global_run, "tracking (Gaussian start)": track_run}, skip=5.0,
@@ -684,16 +684,44 @@ mclplot.plot_errors({"global (uniform start)": global_run, "tracking (Gaussian s
 late = track_run["t"] >= 5
 print(f"tracking after 5 s: max position error {track_run['position_error'][late].max():.3f} m, "
       f"max heading error {np.rad2deg(track_run['heading_error'][late].max()):.1f} deg")
+locked = mclplot.convergence_time(global_run, tolerance=0.5)
+if locked is None:
+    print("global localization: still more than 0.5 m off at the end of the run")
+else:
+    k = int(np.searchsorted(global_run["t"], locked))
+    x, y = global_run["truth"][k, :2]
+    print(f"global localization locks on at t = {locked:.1f} s (error below 0.5 m from then on), "
+          f"with the robot at ({x:.1f}, {y:.1f}) m; before that the largest error is "
+          f"{global_run['position_error'][:k].max():.1f} m")
+
+# %% [markdown]
+# The whole global run, replayed every 2.5 s (press play; the player steps frame by frame too):
+
+# %%
+from robolab.plotting.animation import animate_mcl, show_animation
+
+show_animation(animate_mcl(grid, global_run))
+
+# %% [markdown]
+# **Try it.** The sliders rerun *your* `mcl_step` over the first 15 s of the bag, tracking from the true start
+# pose, with another particle count and other motion-noise alphas (without Jupyter widgets: one figure at
+# the defaults). How few particles still track? What do alphas of 0 do, and why?
+
+# %%
+from robolab.plotting.interactive import mcl_explorer
+
+mcl_explorer(data, mcl_step, init_gaussian, field, PARAMS);
 
 
 # %% [markdown]
-# **The early jumps** (seed 004, section 3.5.1): "The big position jumps at the beginning of the localization
+# **The early jumps**: "The big position jumps at the beginning of the localization
 # can be explained by increasing confidence of the best hypothesis over the runtime. At the start, the best
 # hypothesis might simply be inaccurate which will be corrected over time." Here the reason is visible in the
-# snapshots: the particles first gather in **several** offices that explain the scans equally well, and the
-# best hypothesis hops between those clusters (a jump of 5 m, the offices' spacing) until the robot reaches
-# the corridor, whose cabinet and bench break the symmetry; then the estimate jumps one last time, to the
-# right place, and stays there. Tracking never has this problem: it starts in the right office.
+# snapshots: the particles first gather in **several** places that explain the scans equally well (the four
+# offices are identical), and the best hypothesis hops between those clusters until the robot sees something
+# that breaks the symmetry; then the estimate jumps one last time, to the right place, and stays there. The
+# cell above prints when that happens and where the robot is then: compare it with the map (which feature
+# did the laser see?). Tracking never has this problem: it starts in the right office.
 #
 # **Questions**
 #
@@ -713,7 +741,7 @@ print(f"tracking after 5 s: max position error {track_run['position_error'][late
 # *Your answer here.*
 
 # %% [markdown]
-# ## Beyond the seed 1: KLD-sampling (AMCL's adaptive particle count)
+# ## Step beyond 1: KLD-sampling (AMCL's adaptive particle count)
 #
 # A tight cluster needs far fewer particles than a belief spread over four offices. **KLD-sampling**
 # (Probabilistic Robotics **Table 8.4**, Fox 2003) draws particles until their number exceeds a bound that
@@ -786,10 +814,29 @@ kld_run = mclplot.run_kld(data, mcl_step, kld_sample_size, init_uniform(grid, 50
                           GLOBAL_PARAMS, rng,
                           epsilon=0.05, z=2.326, n_min=200, n_max=5000, every=3)
 mclplot.plot_particle_count(kld_run, title="KLD-sampling: particle count against time (global start)");
+counts = np.asarray(kld_run["n_particles"])
+at_min = kld_run["t"][np.argmax(counts <= 200)] if (counts <= 200).any() else None
+print(f"particles per update: first {counts[0]}, median {int(np.median(counts))}, last {counts[-1]}; "
+      + (f"down to n_min = 200 at t = {at_min:.1f} s" if at_min is not None else "never down to n_min"))
+kld_locked = mclplot.convergence_time(kld_run, tolerance=0.5)
+print("with KLD-sampling the estimate locks on " + (f"at t = {kld_locked:.1f} s" if kld_locked is not None
+                                                     else "never (still off at the end)"))
+
+# %% [markdown]
+# Look at the printed numbers. KLD-sampling sets the count from how many bins the particles occupy *after*
+# the update. With 60 beams treated as independent, one scan's likelihood is so peaked that a single
+# resampling leaves the particles in a handful of bins, so the bound falls to `n_min` almost at once, even
+# though the belief is still wrong (compare the lock-on time with that of the fixed 3000 particles above).
+#
+# **Question.** What would make the particle count adapt more gradually: fewer beams (`max_beams`), a
+# tempered likelihood (the log-likelihood times a factor < 1), a larger $\varepsilon$, a larger `n_min`?
+# Try one and report the printed numbers.
+#
+# *Your answer here.*
 
 
 # %% [markdown]
-# ## Beyond the seed 2: recovery from a kidnapping (augmented MCL)
+# ## Step beyond 2: recovery from a kidnapping (augmented MCL)
 #
 # Once the particles have converged, nothing can bring them back if they are wrong: a **kidnapped** robot
 # (carried elsewhere, or a wrong initial pose) stays lost. **Augmented MCL** (Table 8.3, AMCL's

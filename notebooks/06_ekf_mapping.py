@@ -22,7 +22,7 @@
 #
 # A robot drives a loop through a simulated 40 x 40 world (one unit per cell) with a 36-beam range sensor:
 # one beam every 10 degrees, range $z_{max} = 20$ units. It knows its commands (speed and rotation speed)
-# and its start pose, but **not the map**. Following seed 000 (section 4 and appendix A), each step of
+# and its start pose, but **not the map**. Each step of
 # the filter
 #
 # 1. **predicts** the pose with the unicycle model (EKF prediction, Probabilistic Robotics Table 3.3),
@@ -30,15 +30,15 @@
 #    (Table 9.2),
 # 3. **corrects** the pose with the 36 ranges ray-cast in that map (Table 3.3 again).
 #
-# At the end you compare the EKF with a particle filter (the core of AMCL) on the same data, as the
-# seed's section 3 does in words, and find a case where the EKF fails and the particle filter does not.
+# At the end you compare the EKF with a particle filter (the core of AMCL) on the same data,
+# and find a case where the EKF fails and the particle filter does not.
 #
 # All distances are in map *units* (one cell), angles in radians, time in seconds.
 
 # %%
 import numpy as np
 import matplotlib.pyplot as plt
-from tqdm import tqdm
+from tqdm.auto import tqdm
 from filterpy.kalman import ExtendedKalmanFilter
 
 from robolab import DATA_DIR
@@ -51,7 +51,7 @@ from robolab.plotting.ekf_mapping import (plot_evidence_map, plot_map_growth, pl
                                           plot_particle_cloud)
 from robolab.checks import ekf_mapping as checks
 
-# The seed's sensor and inverse sensor model constants.
+# The sensor and the inverse sensor model's constants.
 N_BEAMS = 36                      # one beam every 10 degrees
 MAX_RANGE = 20.0                  # z_max, units
 L_OCC, L_FREE, L_UNSEEN = 1.0, -0.2, 0.0
@@ -62,7 +62,7 @@ JACOBIAN_STEPS = (0.1, 0.1, 0.01) # central-difference steps: x, y (units), thet
 # ## The bundled world
 #
 # `data/ekf_world.npz` (made by `robolab data`) holds the true world, the commands, the true poses and the
-# scans: `world[row, col]` with row = y (the seed indexes `map(x, y)`; here it is `world[y, x]`), `speed`
+# scans: `world[row, col]` with row = y (MATLAB code often indexes `map(x, y)`; here it is `world[y, x]`), `speed`
 # and `rotation_speed` per step of `dt = 0.1` s, `states[k]` the true pose at time `k dt`, and
 # `scans[k]` the 36 ranges measured at `states[k + 1]` (ray-cast truth plus $\mathcal N(0, 0.2^2)$).
 
@@ -86,7 +86,7 @@ ax.legend(loc="upper right");
 # %% [markdown]
 # ## 1. The motion model
 #
-# The seed's `transitionModel` is an Euler step of the velocity motion model (Probabilistic Robotics
+# The motion model is an Euler step of the velocity motion model (Probabilistic Robotics
 # section 5.3, without noise), the EKF's mean prediction $\bar\mu_t = g(u_t, \mu_{t-1})$ (Table 3.3, line 2):
 #
 # $$
@@ -98,7 +98,7 @@ ax.legend(loc="upper right");
 
 # %% tags=["exercise"]
 def transition_model(state, speed, rotation_speed, dt):
-    """Predict the pose with the seed's unicycle model (``transitionModel``).
+    """Predict the pose with the unicycle model (an Euler step of the velocity model).
 
     The Euler step of the velocity motion model (Probabilistic Robotics,
     section 5.3, without noise), the mean prediction ``g(u_t, mu_{t-1})`` of
@@ -110,7 +110,7 @@ def transition_model(state, speed, rotation_speed, dt):
         y' = y + v \\sin\\theta \\,\\Delta t, \\qquad
         \\theta' = \\mathrm{wrap}(\\theta + \\omega \\,\\Delta t)
 
-    The position moves along the *old* heading, as in the seed.
+    The position moves along the *old* heading.
 
     Parameters
     ----------
@@ -151,12 +151,12 @@ checks.check_transition_model(transition_model)
 # \begin{pmatrix} 1 & 0 & -v \sin\theta\,\Delta t \\ 0 & 1 & v \cos\theta\,\Delta t \\ 0 & 0 & 1 \end{pmatrix}.
 # $$
 #
-# The seed's `stateJacobian` is exactly this. (The seed's section 3 shows ROS's EKF linearizing the *control*
-# noise as well; here the noise enters additively through $Q$.)
+# (ROS's `robot_localization` EKF linearizes the *control* noise as well; here the noise enters additively
+# through $Q$.)
 
 # %% tags=["exercise"]
 def state_jacobian(state, speed, rotation_speed, dt):
-    """Jacobian ``G_t = dg/dx`` of :func:`transition_model` (the seed's ``stateJacobian``).
+    """Jacobian ``G_t = dg/dx`` of :func:`transition_model` (Probabilistic Robotics, Table 3.3).
 
     Probabilistic Robotics, Table 3.3 line 3 (``Sigma = G Sigma G^T + R``):
 
@@ -209,7 +209,7 @@ print(f"dead reckoning: final position error {err_dead[-1]:.2f} units")
 # %% [markdown]
 # ## 2. The measurement model: 36 ray-cast ranges
 #
-# The seed's `measurementFunction` walks each beam from the robot in steps of 0.1 until it finds a cell
+# A simple way to predict a range walks each beam from the robot in steps of 0.1 until it finds a cell
 # with a value above 0.5 or leaves the map. Beam $k$ points at $\theta + 2\pi k / 36$, and its predicted range
 # is the range $z^*_k$ of the beam model (Probabilistic Robotics section 6.3):
 #
@@ -228,10 +228,10 @@ def measurement_function(state, grid, n_beams=N_BEAMS, max_range=MAX_RANGE):
     """Predicted ranges ``h(x, m)`` of the beams, by ray casting in the map.
 
     Beam ``k`` points at ``theta + 2 pi k / n_beams`` (every 10 degrees for 36
-    beams, as the seed's ``measurementFunction``); its predicted range ``z*_k``
+    beams); its predicted range ``z*_k``
     (Probabilistic Robotics, section 6.3) is the distance from the robot's
     position to the first obstacle cell the beam enters, or ``max_range``. The
-    seed marches each beam in 0.1 steps; :func:`robolab.raycast.cast_rays`
+    simplest version marches each beam in 0.1 steps; :func:`robolab.raycast.cast_rays`
     traverses the grid exactly and for all beams at once.
 
     Parameters
@@ -240,7 +240,7 @@ def measurement_function(state, grid, n_beams=N_BEAMS, max_range=MAX_RANGE):
         Pose ``(x, y, theta)``.
     grid : OccupancyGrid or array_like, shape (H, W)
         The map. An OccupancyGrid is used as it is (obstacle where
-        ``data >= occupied_threshold``). An array is the seed's evidence map
+        ``data >= occupied_threshold``). An array is the evidence map of section 3
         (one unit per cell, origin 0): obstacle where the score is > 0.5.
     n_beams : int
         Number of beams, evenly spread over the full circle.
@@ -292,8 +292,8 @@ def measurement_jacobian(state, grid, n_beams=N_BEAMS, max_range=MAX_RANGE, step
         H_{kj} \\approx \\frac{h_k(x + \\delta_j e_j) - h_k(x - \\delta_j e_j)}{2 \\delta_j},
         \\qquad j \\in \\{x, y, \\theta\\}
 
-    (Probabilistic Robotics, Table 3.3 line 4 needs ``H_t``; the seed lets
-    MATLAB's ``trackingEKF`` approximate it numerically in the same way).
+    (Probabilistic Robotics, Table 3.3 line 4 needs ``H_t``; MATLAB's
+    ``trackingEKF`` approximates it numerically in the same way).
     All six perturbed poses are ray-cast in one :func:`cast_rays` call.
 
     A ray-cast range is only *piecewise* differentiable: while a beam ends on
@@ -330,7 +330,7 @@ checks.check_measurement_jacobian(measurement_jacobian)
 # %% [markdown]
 # ## 3. Mapping with the inverse sensor model
 #
-# The seed's `mapping` loops over every cell and adds the provided `inverse_sense_model`: for each cell it
+# The mapping step adds a simple inverse sensor model for every cell: for each cell it
 # picks the **closest beam**; if that beam ends in the cell (and is not a max-range reading) it returns
 # $+1$, if the beam passes through the cell it returns $-0.2$, and if no beam reaches the cell it returns 0.
 # That is Probabilistic Robotics' `inverse_range_sensor_model` (Table 9.2) with obstacle thickness
@@ -355,7 +355,7 @@ def inverse_sensor_model(
 ):
     """Per-cell evidence of one scan: +1 hit, -0.2 passed, 0 not reached.
 
-    The seed's provided ``inverse_sense_model``, i.e. Probabilistic Robotics'
+    A simple version of Probabilistic Robotics'
     ``inverse_range_sensor_model`` (Table 9.2) with ``l_occ = +1``,
     ``l_free = -0.2``, ``l_0 = 0``, obstacle thickness ``alpha`` = one cell
     and opening angle ``beta`` = ``beam_width``, evaluated for every cell at
@@ -389,10 +389,10 @@ def inverse_sensor_model(
         ``zmax``, > 0.
     beam_angles : array_like, shape (B,), optional
         Beam directions relative to the heading (rad); default
-        ``2 pi k / B`` (the seed's sensor).
+        ``2 pi k / B`` (the lab's sensor).
     beam_width : float, optional
         Opening angle ``beta`` of a beam (rad); default ``2 pi / B``, the
-        spacing of the seed's beams, so that every cell within range belongs
+        spacing of the beams, so that every cell within range belongs
         to a beam.
 
     Returns
@@ -420,17 +420,17 @@ ax.plot(*truth[1, :2], "r^", ms=9);
 
 
 # %% [markdown]
-# The map accumulates the evidence of every scan (Table 9.1, line 4, with the seed's scores in place of
+# The map accumulates the evidence of every scan (Table 9.1, line 4, with the scores +1 / -0.2 in place of
 # log odds): $m \leftarrow m + \ell(x_t, z_t)$. Cells no beam has reached stay 0.
 
 # %% tags=["exercise"]
 def update_map(grid, state, scan, max_range=MAX_RANGE):
-    """Add one scan's inverse sensor model to the evidence map (the seed's ``mapping``).
+    """Add one scan's inverse sensor model to the evidence map.
 
     .. math:: m_i \\leftarrow m_i + \\ell_i(x_t, z_t)
 
     the additive update of occupancy grid mapping (Probabilistic Robotics,
-    Table 9.1, line 4, with the seed's scores in place of log odds and no
+    Table 9.1, line 4, with the scores +1 / -0.2 in place of log odds and no
     prior term). Cells no beam reaches are unchanged, so a map that starts at
     0 keeps 0 where nothing was seen.
 
@@ -461,7 +461,7 @@ checks.check_update_map(update_map)
 # %% [markdown]
 # ## 4. One EKF step with mapping, on filterpy
 #
-# The seed's `GOMapping` runs MATLAB's `trackingEKF`; here it is `filterpy.kalman.ExtendedKalmanFilter`.
+# In MATLAB this step would use `trackingEKF`; here it is `filterpy.kalman.ExtendedKalmanFilter`.
 # filterpy's `predict()` computes `x = F x` — linear — and `P = F P Fᵀ + Q`. For the nonlinear prediction,
 # set `ekf.F` to $G_t$ (at the previous mean) and **override** `predict_x` so that it applies
 # `transition_model`; then `ekf.update(z, HJacobian, Hx, args=..., hx_args=...)` performs
@@ -478,7 +478,7 @@ checks.check_update_map(update_map)
 
 # %% tags=["exercise"]
 def ekf_mapping_step(ekf, grid, speed, rotation_speed, scan, dt, max_range=MAX_RANGE):
-    """One step of EKF localization with mapping (the seed's ``GOMapping``).
+    """One step of EKF localization with mapping (predict, map, correct).
 
     Probabilistic Robotics, Table 3.3, with the map update in between:
 
@@ -505,8 +505,8 @@ def ekf_mapping_step(ekf, grid, speed, rotation_speed, scan, dt, max_range=MAX_R
     that is the best pose the filter knows when the scan arrives, and the
     correction needs a map that already contains the obstacles (in the very
     first step the map is empty and every predicted range would be ``zmax``).
-    The seed's code passes the previous pose to ``mapping``; here it is the
-    predicted one, as its text explains.
+    The map is updated at the predicted pose, not the previous one (section 6
+    explains why).
 
     Parameters
     ----------
@@ -541,8 +541,8 @@ checks.check_ekf_mapping_step(ekf_mapping_step)
 # %% [markdown]
 # ## 5. The run
 #
-# Start at the known initial pose with the seed's process noise `pNoise = diag(0.0001, 0.0001, 0.08)` and,
-# as the seed, $R = I$ (a standard deviation of one unit = one cell per range: the map is only known to the
+# Start at the known initial pose with the process noise `Q = diag(0.0001, 0.0001, 0.08)` and
+# $R = I$ (a standard deviation of one unit = one cell per range: the map is only known to the
 # cell, whatever the sensor's own noise).
 
 # %%
@@ -595,9 +595,9 @@ plot_errors(t, {"dead reckoning": err_dead, "EKF with mapping": err_ekf, "EKF on
 # %% [markdown]
 # ## 6. Why map after the prediction?
 #
-# The seed calls `mapping` after `predict` and before `correct`: *"the EKF only knows the estimated position
-# at that point"*, and *"performing the mapping after the correction would lead to incorrect results in the
-# first iteration, as the map has not been initialized."* With an empty map every predicted range is
+# The step maps after `predict` and before `correct`. The usual argument: the EKF only knows the estimated
+# position at that point, and mapping after the correction would lead to incorrect results in the first
+# iteration, as the map has not been initialized. With an empty map every predicted range is
 # $z_{max}$ and every entry of $H$ is 0, so the first correction does nothing at all ($K = 0$): the filter
 # silently ignores the scan. From the second step on, correct-then-map corrects against a map made from
 # the **previous** pose's scan. Below is that order, written with the same functions.
@@ -619,25 +619,25 @@ print(f"empty map: predicted ranges {np.unique(z0)}, |H| max = {np.abs(H0).max()
 est_ctm, _, _, _ = run_ekf(correct_then_map_step, data["initial_state"], data["initial_cov"],
                            np.zeros(world.shape), desc="correct, then map")
 err_ctm = position_error(est_ctm)
-plot_errors(t, {"map, then correct (seed)": err_ekf, "correct, then map": err_ctm},
+plot_errors(t, {"map, then correct": err_ekf, "correct, then map": err_ctm},
             title="Order of mapping and correction");
 print(f"mean position error: map then correct {err_ekf.mean():.2f}, correct then map {err_ctm.mean():.2f} units")
 
 
 # %% [markdown]
-# The seed's argument is about the **first** iteration: correcting against a map that is not known yet
+# That argument is about the **first** iteration: correcting against a map that is not known yet
 # (here: empty) gives predicted ranges of $z_{max}$ and $H = 0$, so $K = 0$ and the scan is wasted; had the
 # unknown cells been taken as obstacles instead, every predicted range would be 0 and the correction would
 # push the pose anywhere. After the first step, the other order corrects against the map of the previous
-# scan, which lags the robot by one step (0.1 s, at most 0.2 units) — less than a cell, which is the seed's
-# *"the map's resolution is not high enough for the initial error to significantly impact the results"*.
+# scan, which lags the robot by one step (0.1 s, at most 0.2 units) — less than a cell: the map's
+# resolution is too coarse for that lag to matter.
 # On this run the two orders end up equally good (within the cell-sized wander of both): what matters is
 # that the correction never uses a map that does not yet contain the obstacles the scan sees.
 
 # %% [markdown]
 # ## 7. EKF against a particle filter (AMCL)
 #
-# The seed's section 3 compares ROS's EKF and AMCL in words: both predict with a motion model and weigh
+# ROS's EKF and AMCL are alike in shape: both predict with a motion model and weigh
 # with a measurement model, but AMCL is more flexible (configurable motion models, laser models, number of
 # beams) while the EKF is tied to one linearized model. Here is the comparison on the same data. The
 # particle filter below is AMCL's core written compactly (Probabilistic Robotics Table 8.2 with the
@@ -696,7 +696,7 @@ cells = free[rng.integers(0, len(free), 2000)]
 uniform = np.column_stack([cells[:, 1] + rng.random(2000), cells[:, 0] + rng.random(2000),
                            rng.uniform(-np.pi, np.pi, 2000)])
 pf_global, clouds = particle_filter(uniform, true_grid, rng, n=N_STEPS_GLOBAL, sigma_z=2.0, desc="PF, global")
-fig, axes = plt.subplots(1, 3, figsize=(15, 5))
+fig, axes = plt.subplots(1, 3, figsize=(13, 4.4))
 plot_particle_cloud(uniform, truth[0], world, axes[0], title="Particle filter, global start: t = 0 s")
 for ax, k in zip(axes[1:], (4, N_STEPS_GLOBAL - 1)):
     plot_particle_cloud(clouds[k], truth[k + 1], world, ax, estimate=pf_global[k],
@@ -736,13 +736,13 @@ print(f"after {tg[-1]:.0f} s: EKF error {position_error(est_lost)[-1]:.1f}, "
 #
 # *Your answer here.*
 #
-# 4. The seed finds AMCL more flexible than the EKF. Name two things the particle filter above could change
+# 4. AMCL is often called more flexible than the EKF. Name two things the particle filter above could change
 #    without touching the rest of the algorithm (motion model, sensor, number of beams, ...) and what the EKF
 #    would need for the same change.
 #
 # *Your answer here.*
 #
-# 5. If the sensor data were noisier, how would the evidence map react (the seed: *"multiple readings help to
-#    provide a more accurate result"*)? Which of the scores +1 and -0.2 would you change, and why?
+# 5. If the sensor data were noisier, how would the evidence map react (do multiple readings help to
+#    provide a more accurate result?) Which of the scores +1 and -0.2 would you change, and why?
 #
 # *Your answer here.*

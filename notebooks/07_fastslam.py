@@ -20,7 +20,7 @@
 # %% [markdown]
 # # Lab 07 — FastSLAM 1.0 with known correspondences
 #
-# *Seed: ME465 extra lab. Reference: Probabilistic Robotics (Thrun, Burgard, Fox), Chapter 13, **Table 13.1** (FastSLAM 1.0 with known correspondence, p. 450).*
+# *Reference: Probabilistic Robotics (Thrun, Burgard, Fox), Chapter 13, **Table 13.1** (FastSLAM 1.0 with known correspondence, p. 450).*
 #
 # In the localization labs the map was given. Here the robot must build the map — the positions of five fiducials (visual markers with known identities) — **while** it localizes itself in that map. FastSLAM does it by factoring the SLAM posterior (eq. 13.8):
 #
@@ -48,7 +48,7 @@ from robolab.checks import fastslam as checks
 # %% [markdown]
 # ## 1. The fiducial robot
 #
-# `FiducialRobot` plays the role of the seed's `Robot.m`. Drive it with
+# `FiducialRobot` plays the role of a simulated robot (a `Robot.m` in MATLAB versions of this lab). Drive it with
 #
 # ```python
 # while robot.run():          # advance one step; False when the run is over
@@ -68,7 +68,7 @@ from robolab.checks import fastslam as checks
 # z = \begin{pmatrix} r \\ \phi \end{pmatrix} = \begin{pmatrix} \sqrt{(m_x - x)^2 + (m_y - y)^2} \\ \operatorname{atan2}(m_y - y,\, m_x - x) - \theta \end{pmatrix} + v, \qquad v \sim \mathcal N(0, Q_t).
 # $$
 #
-# The route is a rounded triangle driven three times (60 s, 600 steps), starting at the seed's $x_0 = [-2.5, -2, 0.25]^T$. The robot keeps the ground truth (`true_poses`, `fiducials`) for plots and grading — the filter never looks at it.
+# The route is a rounded triangle driven three times (60 s, 600 steps), starting at $x_0 = [-2.5, -2, 0.25]^T$. The robot keeps the ground truth (`true_poses`, `fiducials`) for plots and grading — the filter never looks at it.
 
 # %%
 robot = FiducialRobot(seed=0)
@@ -96,31 +96,31 @@ print(f"dead reckoning ends {dr_error:.2f} m from the true final position")
 # %% [markdown]
 # ## 2. The particle set
 #
-# The seed stores the particles as MATLAB cell arrays of structures (`X{j}.map{k}.mean`). In numpy we keep **arrays over all particles** so that every operation runs on all particles at once:
+# A MATLAB version would store the particles as cell arrays of structures (`X{j}.map{k}.mean`). In numpy we keep **arrays over all particles** so that every operation runs on all particles at once:
 #
 # | key | shape | meaning |
 # |---|---|---|
 # | `poses` | $(M, 3)$ | pose $x^{[k]}$ of particle $k$ |
-# | `means` | $(M, K, 2)$ | landmark means $\mu^{[k]}_j$ — the seed's `X{k}.map{j}.mean` is `means[k, j]` |
+# | `means` | $(M, K, 2)$ | landmark means $\mu^{[k]}_j$ — MATLAB's `X{k}.map{j}.mean` is `means[k, j]` |
 # | `covs` | $(M, K, 2, 2)$ | landmark covariances $\Sigma^{[k]}_j$ |
 # | `seen` | $(M, K)$, bool | landmark $j$ has a Gaussian belief in particle $k$ |
 # | `weights` | $(M,)$ | importance weights, summing to one |
 #
 # Two ways to start a landmark:
 #
-# * **the seed's prior** (`init="prior"`): $\mu_0 = 0$, $\Sigma_0 = 10^4 I$ for every landmark, so `seen` is all `True` and the first sighting is an ordinary EKF update from that vague prior;
+# * **a vague prior** (`init="prior"`): $\mu_0 = 0$, $\Sigma_0 = 10^4 I$ for every landmark, so `seen` is all `True` and the first sighting is an ordinary EKF update from that vague prior;
 # * **the book's first observation** (`init="first_observation"`, Table 13.1 lines 7–10): `seen` starts `False`; the first sighting sets $\mu = h^{-1}(z, x)$ and $\Sigma = H^{-1} Q_t H^{-T}$.
 #
 # Every particle starts at $x_0$: the map's frame is defined by the start pose.
 
 # %% tags=["exercise"]
 def init_particles(n_particles, n_landmarks, x0, init="prior"):
-    r"""Create the initial FastSLAM particle set (seed 003, "Data Structure Initialization").
+    r"""Create the initial FastSLAM particle set (Probabilistic Robotics, Table 13.1, line 1).
 
     Every particle starts at the known pose :math:`x_0` (SLAM fixes the map's
     frame by the start pose) with equal weight :math:`1/M`.
 
-    ``init="prior"`` (the seed): every landmark has the vague Gaussian belief
+    ``init="prior"``: every landmark has the vague Gaussian belief
     :math:`\mu_0 = 0`, :math:`\Sigma_0 = 10^4 I`, so ``seen`` is all True and the
     first observation is an ordinary EKF update from that prior.
 
@@ -228,7 +228,7 @@ print("spread of the cloud (std of x, y in m, theta in rad):", np.round(cloud.st
 # H = \frac{\partial h}{\partial \mu_j} = \begin{pmatrix} \delta_x/\sqrt q & \delta_y/\sqrt q \\ -\delta_y/q & \delta_x/q \end{pmatrix}.
 # $$
 #
-# The bearing row is the seed's hint: $\partial\phi/\partial\mu_{j,x} = (y - \mu_y)/q$ and $\partial\phi/\partial\mu_{j,y} = (\mu_x - x)/q$. FastSLAM only needs the Jacobian with respect to the **landmark**: the pose is not a Kalman state, it is sampled.
+# The bearing row: $\partial\phi/\partial\mu_{j,x} = (y - \mu_y)/q$ and $\partial\phi/\partial\mu_{j,y} = (\mu_x - x)/q$. FastSLAM only needs the Jacobian with respect to the **landmark**: the pose is not a Kalman state, it is sampled.
 #
 # Write both vectorized over leading dimensions (for example `landmark` of shape $(M, 2)$ and `pose` $(M, 3)$).
 
@@ -269,7 +269,7 @@ def h_jacobian(landmark, pose):
     r"""Jacobian :math:`H = \partial h(\mu_j, x) / \partial \mu_j` with respect to the landmark.
 
     With :math:`\delta = \mu_j - (x, y)^T` and :math:`q = \delta^T\delta`
-    (Probabilistic Robotics eq. 13.11 restricted to the landmark; the seed's
+    (Probabilistic Robotics eq. 13.11 restricted to the landmark; the
     hints give the bearing row):
 
     .. math::
@@ -320,9 +320,9 @@ print("largest difference:", np.abs(h_jacobian(landmark, pose) - numeric).max())
 # \mu' = \mu + K e, \qquad \Sigma' = (I - K H)\,\Sigma, \qquad w = |2\pi Q|^{-1/2} \exp\!\big(-\tfrac12\, e^T Q^{-1} e\big).
 # $$
 #
-# **Two typos in the seed's handout.** It defines $e = \hat z - z$ and then adds $K e$ — that moves the landmark *away* from the measurement; the innovation is $e = z - \hat z$. And it prints the weight as $|2\pi Q|^{+1/2}\exp(-\frac12 e^T Q e)$; the Gaussian density has the determinant to the power $-\frac12$ and the **inverse** $Q^{-1}$ in the exponent. With the handout's version, particles that predict the measurement badly are not penalized, and the filter degrades to dead reckoning.
+# **Two typos that circulate in handouts of this lab.** One version defines $e = \hat z - z$ and then adds $K e$ — that moves the landmark *away* from the measurement; the innovation is $e = z - \hat z$. And it prints the weight as $|2\pi Q|^{+1/2}\exp(-\frac12 e^T Q e)$; the Gaussian density has the determinant to the power $-\frac12$ and the **inverse** $Q^{-1}$ in the exponent. With that version, particles that predict the measurement badly are not penalized, and the filter degrades to dead reckoning.
 #
-# **The bearing wrap (the seed's hint).** A bearing measured as $3.1$ rad and predicted as $-3.1$ rad differ by $0.08$ rad, not $6.2$: wrap the second component of $e$ to $[-\pi, \pi)$ with `wrap_angle`.
+# **The bearing wrap.** A bearing measured as $3.1$ rad and predicted as $-3.1$ rad differ by $0.08$ rad, not $6.2$: wrap the second component of $e$ to $[-\pi, \pi)$ with `wrap_angle`.
 #
 # **Return the log-likelihood** $\ln w = -\frac12 \ln|2\pi Q| - \frac12 e^T Q^{-1} e$. For a landmark estimate a few metres off, $w$ is below $10^{-300}$ and underflows to $0$ in every particle; the logarithm stays finite.
 
@@ -339,7 +339,7 @@ def update_landmark(mean, cov, z, pose, Qt):
         \ln w &= -\tfrac12 \ln|2\pi Q| - \tfrac12 e^T Q^{-1} e
 
     so :math:`w = |2\pi Q|^{-1/2}\exp(-\frac12 e^T Q^{-1} e)`, the Gaussian
-    density of the innovation. The seed's handout prints
+    density of the innovation. Some handouts print
     :math:`|2\pi Q|^{+1/2}\exp(-\frac12 e^T Q e)` and :math:`e = \hat z - z`:
     both are typos. Without the wrap, a bearing measured as 3.1 rad and predicted
     as -3.1 rad (0.08 rad apart) would look 6.2 rad apart.
@@ -381,7 +381,7 @@ def update_landmark(mean, cov, z, pose, Qt):
 checks.check_update_landmark(update_landmark)
 
 # %% [markdown]
-# Why the book initializes a landmark from its first observation: below, the robot sees fiducial 4 for the first time. The seed's prior $\mathcal N(0, 10^4 I)$ linearizes $h$ at the origin, so its first EKF step is one Gauss-Newton step from $(0, 0)$ — and it leaves the landmark far from the truth with a small, confident covariance. Inverting $h$ puts it where it was seen.
+# Why the book initializes a landmark from its first observation: below, the robot sees fiducial 4 for the first time. The vague prior $\mathcal N(0, 10^4 I)$ linearizes $h$ at the origin, so its first EKF step is one Gauss-Newton step from $(0, 0)$ — and it leaves the landmark far from the truth with a small, confident covariance. Inverting $h$ puts it where it was seen.
 
 # %%
 t0 = int(run.measurements[run.measurements[:, 3] == 4][0, 0])      # first step that sees fiducial 4
@@ -394,7 +394,7 @@ mean_first = pose0[:2] + z0[0] * np.array([np.cos(angle), np.sin(angle)])
 H0 = h_jacobian(mean_first, pose0)
 cov_first = np.linalg.inv(H0) @ run.Qt @ np.linalg.inv(H0).T
 
-ax = new_axes("First sighting of fiducial 4: seed's prior vs first-observation init", figsize=(7, 5.5))
+ax = new_axes("First sighting of fiducial 4: vague prior vs first-observation init", figsize=(7, 5.5))
 plot_poses(pose0, ax, color="black", label="robot (true pose)", path=False, arrow_length=0.6)
 plot_landmarks(run.fiducials[4:5], ax, labels=["4"], color="black", label="true fiducial 4")
 for mean, cov, color, label in ((mean_prior, cov_prior, "tab:red", "after one update from N(0, 1e4 I)"),
@@ -487,13 +487,13 @@ checks.check_fastslam_step(fastslam_step)
 # %% [markdown]
 # ## 7. The whole run
 #
-# `fastslam` is the seed's main loop: initialize, then `while robot.run(): ...`. Report the path (the mean of the particles after every step) and the final map: the weighted mixture of the particles' landmark Gaussians, $\bar\mu_j = \sum_k w_k \mu^{[k]}_j$ and $\bar\Sigma_j = \sum_k w_k\big(\Sigma^{[k]}_j + (\mu^{[k]}_j - \bar\mu_j)(\mu^{[k]}_j - \bar\mu_j)^T\big)$.
+# `fastslam` is the main loop: initialize, then `while robot.run(): ...`. Report the path (the mean of the particles after every step) and the final map: the weighted mixture of the particles' landmark Gaussians, $\bar\mu_j = \sum_k w_k \mu^{[k]}_j$ and $\bar\Sigma_j = \sum_k w_k\big(\Sigma^{[k]}_j + (\mu^{[k]}_j - \bar\mu_j)(\mu^{[k]}_j - \bar\mu_j)^T\big)$.
 
 # %% tags=["exercise"]
 def fastslam(
     robot_or_run, n_particles, rng, init="first_observation", Q=None, Qt=None, history=False
 ):
-    r"""Run FastSLAM 1.0 over a whole run of the fiducial robot (seed 003's main loop).
+    r"""Run FastSLAM 1.0 over a whole run of the fiducial robot (Probabilistic Robotics, Table 13.1).
 
     ::
 
@@ -520,7 +520,7 @@ def fastslam(
     rng : numpy.random.Generator
     init : {"first_observation", "prior"}
         Landmark initialization (:func:`init_particles`). The default is the
-        book's: the seed's ``"prior"`` linearizes the first update of every
+        book's: ``"prior"`` linearizes the first update of every
         landmark at the origin, which can leave it metres off with a small
         covariance for hundreds of steps (the notebook shows it).
     Q, Qt : array_like, optional
@@ -559,6 +559,16 @@ plot_fastslam_map(run.true_poses, run.fiducials, result["path"], result["landmar
 plt.show()
 
 # %% [markdown]
+# The same filter replayed, every 10th step: watch the particle cloud spread between sightings and the
+# fiducials appear on the map as they are first seen (the replay reruns *your* `fastslam_step`, 50 particles).
+
+# %%
+from robolab.plotting.animation import animate_fastslam, replay_fastslam, show_animation
+
+replay = replay_fastslam(run, init_particles, fastslam_step, 50, np.random.default_rng(0), every=10)
+show_animation(animate_fastslam(replay))
+
+# %% [markdown]
 # At this scale the $2\sigma$ ellipses are hardly visible. Up close, $\pm 0.5$ m around each true fiducial:
 
 # %%
@@ -572,7 +582,7 @@ plt.show()
 # *Your answer here.*
 
 # %% [markdown]
-# ### The seed's prior against the book's first-observation initialization
+# ### A vague prior against the book's first-observation initialization
 #
 # The same run and the same random seed, once with each initialization; the error of the map (over the fiducials seen so far) after every step:
 
@@ -597,7 +607,7 @@ def track_errors(init, n_particles=50, seed=0):
 t = np.arange(1, run.n_steps + 1) * run.dt
 errors = {init: track_errors(init) for init in ("prior", "first_observation")}
 plot_errors_over_time(t, {f"landmark RMSE, init={k}": v[0] for k, v in errors.items()},
-                      title="Map error: seed's prior vs first-observation init (M = 50)", ylabel="landmark RMSE [m]")
+                      title="Map error: vague prior vs first-observation init (M = 50)", ylabel="landmark RMSE [m]")
 plt.show()
 for init, (lm_err, pose_err) in errors.items():
     print(f"{init:>18}: final landmark RMSE {lm_err[-1]:.2f} m, final pose error {pose_err[-1]:.2f} m")
@@ -682,10 +692,10 @@ print("median landmark RMSE [m] per M:", dict(zip(n_particles.tolist(), np.round
 #
 #    *Your answer here.*
 #
-# 3. The seed initializes every landmark at $\mu_0 = 0$ with $\Sigma_0 = 10^4 I$. Explain, with the figures of sections 5 and 7, why the book's initialization from the first observation gives a better map, and when the seed's prior would be harmless.
+# 3. The vague prior initializes every landmark at $\mu_0 = 0$ with $\Sigma_0 = 10^4 I$. Explain, with the figures of sections 5 and 7, why the book's initialization from the first observation gives a better map, and when the vague prior would be harmless.
 #
 #    *Your answer here.*
 #
-# 4. Summarize the method with its equations (the seed's report asks for an overview), and state the two corrections to the handout's formulas.
+# 4. Summarize the method with its equations (an overview), and state the two corrections to the handout formulas of section 4.
 #
 #    *Your answer here.*

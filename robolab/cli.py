@@ -152,6 +152,8 @@ def _build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("release", help="build the student edition (no solutions, no hidden tests)")
     r.add_argument("out", type=Path)
+    r.add_argument("--no-wheel", dest="wheel", action="store_false",
+                   help="skip building dist/robolab-*.whl (the installable edition)")
 
     gs = sub.add_parser("gradescope", help="build a Gradescope autograder bundle for one lab")
     gs.add_argument("--lab", required=True)
@@ -190,7 +192,7 @@ def _dispatch(args) -> int:
     if args.command == "solve":
         return commands.solve(args.notebooks, out=args.out)
     if args.command == "release":
-        return commands.release(args.out)
+        return commands.release(args.out, wheel=args.wheel)
     if args.command == "gradescope":
         return commands.gradescope(
             args.lab,

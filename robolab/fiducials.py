@@ -1,4 +1,4 @@
-"""The fiducial robot of the FastSLAM lab (seed 003, the ME465 extra lab's ``Robot.m``).
+"""The fiducial robot of the FastSLAM lab (lab 07; a MATLAB ``Robot.m`` in other versions of this lab).
 
 A unicycle robot drives a closed loop around a handful of fiducials (visual
 markers with known identities) and reports, at every step, the command it was
@@ -39,7 +39,7 @@ and the route (:meth:`FiducialRobot.input`) is a rounded triangle of about
 of 600 steps goes three times around, so every fiducial is revisited (loop
 closure). More fiducials (``n_fiducials > 5``, e.g. 15 for the benchmark) are
 added on a fixed golden-angle spiral around the loop's centre, independent of
-the seed.
+the random seed.
 
 The whole run (motion noise and measurement noise) is drawn at construction
 from ``numpy.random.default_rng(seed)``, so a robot is a deterministic replay:
@@ -247,7 +247,7 @@ class FiducialRun:
 
 
 class FiducialRobot:
-    """The fiducial robot of the FastSLAM lab, driven like the seed's ``Robot.m``.
+    """The fiducial robot of the FastSLAM lab, driven like MATLAB's ``Robot.m`` in other versions of the lab.
 
     Use it as::
 

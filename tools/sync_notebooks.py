@@ -76,7 +76,8 @@ def to_text(notebook: Path) -> str:
     nb.metadata["jupytext"].pop("text_representation", None)
     text = jupytext.writes(nb, fmt="py:percent")
     # jupytext records its own version in the header; drop it so upgrades do not churn.
-    return "".join(line for line in text.splitlines(keepends=True) if "jupytext_version" not in line)
+    lines = text.splitlines(keepends=True)
+    return "".join(line for line in lines if "jupytext_version" not in line)
 
 
 def sources() -> list[Path]:

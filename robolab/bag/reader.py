@@ -56,12 +56,14 @@ class BagReader:
         self.progress = bool(progress)
         if not self.path.exists():
             raise FileNotFoundError(f"bag not found: {self.path}")
-        from rosbags.highlevel import AnyReader
         from rosbags.typesys import Stores, get_typestore
+
+        from robolab.bag.ros1 import any_reader_class
 
         self._reader = None
         with self._wrap("cannot open bag"):
-            reader = AnyReader([self.path], default_typestore=get_typestore(Stores.LATEST))
+            # AnyReader, or a ROS1-only reader where rosbags' ROS2 reader cannot be imported
+            reader = any_reader_class()([self.path], default_typestore=get_typestore(Stores.LATEST))
             reader.open()
             self._reader = reader
         try:

@@ -359,8 +359,8 @@ def solve(notebooks: Sequence[Path], *, out: Path) -> int:
     return 0
 
 
-def release(out: Path) -> int:
-    """Build the student edition into ``out``."""
+def release(out: Path, *, wheel: bool = True) -> int:
+    """Build the student edition into ``out`` (and its wheel into ``out/dist``)."""
     try:
         _output_folder(out, "release folder")
     except ValueError as exc:
@@ -368,10 +368,12 @@ def release(out: Path) -> int:
     from robolab.grading.release import ReleaseError, build_release
 
     try:
-        build_release(out)
+        build_release(out, wheel=wheel)
     except (ReleaseError, SyntaxError, ValueError) as exc:
         return _error(str(exc))
     print(f"student edition written to {_shown(out)}/ (no solutions, no hidden tests)")
+    if wheel:
+        print(f"installable wheel: {_shown(next((Path(out) / 'dist').glob('robolab-*.whl')))}")
     return 0
 
 
