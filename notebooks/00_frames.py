@@ -223,7 +223,10 @@ print("odom in map:       ", map_from_odom)
 #
 # Not every number in `ranges` is a measurement. The message says a reading is valid only
 # within `[range_min, range_max]`; drivers report "no return" as `inf` (REP-117: nothing in
-# range), as `NaN`, or as `0`. Those must be **dropped, never turned into points**: an `inf`
+# range), as `NaN`, or as `0`. A reading of exactly `range_max` is the scanner saying that
+# nothing came back (a *max-range reading*, the beam model's $p_{max}$ of lab 02), not a wall
+# at `range_max`: robolab, like AMCL and gmapping, counts it as no return. So a real return
+# is finite, positive and within $[\text{range\_min}, \text{range\_max})$. Those must be **dropped, never turned into points**: an `inf`
 # turned into a point is a point at infinity, a `0` becomes a wall inside the robot.
 
 # %%
@@ -239,7 +242,8 @@ print(f"over the whole bag: {np.mean(np.isinf(r)):.1%} inf, {np.mean(np.isnan(r)
 # ### Exercise 1 — `scan_to_cartesian(ranges, angles, range_min, range_max)`
 #
 # Build a boolean mask of the valid beams — finite, positive, within
-# $[\text{range\_min}, \text{range\_max}]$ — and compute the endpoints of those beams only,
+# $[\text{range\_min}, \text{range\_max})$: a reading equal to `range_min` is a return, one
+# equal to `range_max` is not — and compute the endpoints of those beams only,
 # without a Python loop over beams (`np.isfinite`, `np.cos`, `np.sin`, `np.column_stack`).
 # Comparisons with NaN are `False`, so NaN falls out of the mask by itself (wrap the mask
 # in `with np.errstate(invalid="ignore"):` to silence numpy's warning). Raise `ValueError`
@@ -259,9 +263,10 @@ def scan_to_cartesian(ranges, angles, range_min, range_max):
 
     (Probabilistic Robotics, Table 6.3, line 5, with the sensor at the origin).
     As ``sensor_msgs/LaserScan`` specifies, a reading is a real return only if
-    it is finite, positive and within ``[range_min, range_max]``; everything
+    it is finite, positive and within ``[range_min, range_max)``; everything
     else (0, ``inf``, NaN, too short, too long) means "no return" and is dropped,
-    never turned into a hit.
+    never turned into a hit. A reading of exactly ``range_max`` is a max-range
+    reading (a failed return), not a wall at ``range_max``.
 
     Parameters
     ----------
@@ -295,11 +300,12 @@ checks.check_scan_to_cartesian(scan_to_cartesian)
 
 
 # %% [markdown]
-# A reading of exactly `range_max` is valid as far as `sensor_msgs` is concerned, so
-# `scan_to_cartesian` keeps it. This simulated laser, however, reports a *failed* return
+# Why drop a reading of exactly `range_max`? This simulated laser reports a *failed* return
 # (a black or glassy surface) as exactly `range_max` — the beam model's $p_{max}$ of lab 02.
 # Placed on a map, such a reading would draw a phantom wall 8 m away, through real walls.
-# So when we build pictures of the world below, we first mark those readings as no return:
+# Your `scan_to_cartesian` already drops them; when we build pictures of the world below,
+# `usable_ranges` also marks them as no return explicitly, so the pictures do not depend on
+# that one comparison:
 
 # %%
 def usable_ranges(ranges, range_max):
