@@ -51,7 +51,7 @@ from tqdm.auto import tqdm
 
 from robolab import DATA_DIR
 from robolab.bag import BagReader, laser_pose_in_base
-from robolab.geometry import compose, transform_points, wrap_angle
+from robolab.geometry import anchor_odometry, compose, transform_points, wrap_angle
 from robolab.maps import OccupancyGrid, load_map
 from robolab.raycast import cast_rays
 from robolab.plotting import plot_map, plot_scan
@@ -72,10 +72,13 @@ SNAPSHOTS = [2.0, 8.0, 20.0]  # seconds: the three snapshots of section 4
 # the **first ground-truth pose** (the robot knows where it starts, nothing more):
 #
 # $$
-# x^{map}_t = x^{map}_0 \oplus x^{odom}_t ,
+# x^{map}_t = x^{map}_0 \oplus \left( (x^{odom}_0)^{-1} \oplus x^{odom}_t \right) ,
 # $$
 #
-# with $\oplus$ the pose composition (`robolab.geometry.compose`). From then on, odometry is on its own.
+# with $\oplus$ the pose composition (`robolab.geometry.compose`): the motion odometry measured since the start,
+# put onto the first true pose (`robolab.geometry.anchor_odometry`). The simulated odometry starts at the origin of
+# `odom`; a real robot's does not, and $x^{map}_0 \oplus x^{odom}_t$ would then report drift that is not there.
+# From then on, odometry is on its own.
 
 # %%
 with BagReader(DATA_DIR / "mapping.bag") as bag:
@@ -87,7 +90,7 @@ with BagReader(DATA_DIR / "mapping.bag") as bag:
 
 t = scans.stamps - scans.stamps[0]                        # seconds since the first scan
 true_poses = truth.at(scans.stamps)                        # map -> base_link at every scan
-odom_poses = compose(truth.poses[0], odom.at(scans.stamps))  # raw odometry, anchored at the start
+odom_poses = anchor_odometry(odom.at(scans.stamps), truth.at(scans.stamps[0]))  # raw odometry, anchored at the start
 true_map = load_map(DATA_DIR / "office.yaml")
 print(f"{len(scans)} scans of {scans.beams} beams over {t[-1]:.0f} s; range [{scans.range_min:.2f}, {scans.range_max:.1f}] m")
 print("laser mount base_link -> laser (x, y, theta):", laser_offset)
@@ -651,5 +654,41 @@ plot_map_comparison(logodds_odom, logodds_truth, left_title="raw odometry", righ
 # **Question 4.** Compare the log-odds map from the ground-truth poses with the counting map. Which walls got
 # sharper, and why (think of what $\alpha$ and the nearest-beam rule do to a beam that grazes a wall)? Does the
 # log-odds map fix the raw-odometry map? What would?
+#
+# *Your answer here.*
+
+# %% [markdown]
+# ## 8. One step further: the Intel Research Lab, a real CARMEN log
+#
+# The Intel lab log holds 910 laser scans with the poses a SLAM system corrected them to, and the raw wheel
+# odometry. We map it with your `logodds_update` twice: with the corrected poses, and with raw odometry anchored at
+# the first corrected pose. Cells no beam reached stay unknown (`robolab.maps.from_logodds`). The data set is not
+# part of robolab: `robolab.datasets.fetch("intel_lab")` downloads it (0.45 MB) when you are online.
+
+# %%
+from robolab.datasets import locate, read_carmen
+from robolab.evaluation import occupancy_iou, occupied_distances
+from robolab.realdata.mapping import carmen_poses, map_carmen
+
+folder = locate("intel_lab")
+if folder is None:
+    print("The Intel lab log is not on disk: robolab.datasets.fetch('intel_lab') downloads it (0.45 MB).")
+else:
+    log = read_carmen(folder / "intel-corrected.log.gz")
+    intel_params = {"l_occ": np.log(0.7 / 0.3), "l_free": np.log(0.35 / 0.65), "l_0": 0.0,
+                    "alpha": 0.2, "beta": np.radians(2.0)}   # 0.1 m cells: alpha two cells
+    corrected = map_carmen(log, logodds_update, intel_params, resolution=0.1, every=4)
+    raw = map_carmen(log, logodds_update, intel_params, resolution=0.1, every=4,
+                     poses=carmen_poses(log, "odometry"))
+    fig, axes = plt.subplots(1, 2, figsize=(13, 6))
+    plot_map(corrected, ax=axes[0], title="Intel lab, corrected poses")
+    plot_map(raw, ax=axes[1], title="Intel lab, raw odometry")
+    d = occupied_distances(raw, corrected)
+    print(f"raw-odometry walls lie a median {np.median(d):.2f} m (90 %: {np.percentile(d, 90):.2f} m) from the "
+          f"corrected map's; IoU of the walls within 0.2 m: {occupancy_iou(raw, corrected, 0.2):.2f}")
+
+# %% [markdown]
+# **Question 5.** The printed numbers compare the two Intel maps. Where in the raw-odometry map does the error
+# come from: a few large jumps, or a slow drift? Which lab fixes it, and with what sensor?
 #
 # *Your answer here.*
