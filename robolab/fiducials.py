@@ -81,7 +81,7 @@ __all__ = [
 
 #: The five fiducials of the lab, metres, one row per id.
 FIDUCIALS = np.array([(-3.5, 1.0), (1.0, 1.5), (-3.0, 5.5), (-8.0, 2.0), (-2.0, -3.5)])
-#: Start pose of the seed: x0 = [-2.5, -2, 0.25] (m, m, rad).
+#: Start pose of the lab's robot: x0 = [-2.5, -2, 0.25] (m, m, rad).
 X0 = np.array([-2.5, -2.0, 0.25])
 #: Time step, s.
 DT = 0.1

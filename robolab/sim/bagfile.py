@@ -38,7 +38,7 @@ def write_bag(
     - ``/tf`` (tf2_msgs/TFMessage): ``odom -> base_link`` at ``odom_rate``, and
       ``base_link -> base_laser_link`` at ``scan_rate`` with each scan's stamp,
       as ROS1's ``static_transform_publisher`` did (so a tool that replays only
-      ``/tf`` and the scans, like seed 000's processBag, has the laser frame);
+      ``/tf`` and the scans, like AMCL's processBag, has the laser frame);
       there is no ``/tf_static`` and no ``map -> odom`` (localization's job);
     - ``/base_scan`` (sensor_msgs/LaserScan, frame ``base_laser_link``,
       ``scan_rate``): all beams are taken at the stamp (``time_increment = 0``,

@@ -10,7 +10,7 @@ from robolab.sim.motion import Controller, follow_route
 from robolab.sim.run import _check_clearance
 from robolab.sim.runs import SEEDS
 
-# -- the EKF world of seed 000 ------------------------------------------------------
+# -- the EKF world of lab 06 ------------------------------------------------------
 EKF_SIZE = 40
 EKF_ZMAX = 20.0
 EKF_DT = 0.1
@@ -20,7 +20,7 @@ EKF_START = (10.0, 10.0, 0.0)
 EKF_DURATION = 50.0
 EKF_CONTROL_NOISE = (0.05, 0.02)  # std of executed speed (units/s) and rotation speed (rad/s)
 EKF_SCAN_SIGMA = 0.2  # units
-EKF_PROCESS_NOISE = np.diag([0.0001, 0.0001, 0.08])  # seed 000's pNoise
+EKF_PROCESS_NOISE = np.diag([0.0001, 0.0001, 0.08])  # the lab's process noise
 _EKF_BLOCKS = [  # (row0, row1, col0, col1): rows are y, cols are x
     (16, 24, 16, 24),  # the central block, inside the loop
     (20, 26, 3, 6),
@@ -33,10 +33,10 @@ _EKF_BLOCKS = [  # (row0, row1, col0, col1): rows are y, cols are x
 
 
 def ekf_world() -> dict[str, np.ndarray]:
-    """The simulated world of lab 06 (seed 000, section 4) as a dict of arrays.
+    """The simulated world of lab 06 as a dict of arrays.
 
     A 40 x 40 cell world (1 unit per cell, border walls and block obstacles)
-    and a 50 s run of seed 000's unicycle transition model
+    and a 50 s run of lab 06's unicycle transition model
     ``theta' = wrap(theta + rotation_speed dt)``, ``x' = x + speed cos(theta) dt``,
     ``y' = y + speed sin(theta) dt`` with ``dt = 0.1``, a loop around the
     central block. The executed velocities carry Gaussian noise
@@ -50,7 +50,7 @@ def ekf_world() -> dict[str, np.ndarray]:
     -------
     dict
         ``world (40, 40)`` occupancy 0/1 as ``world[row, col]`` with row = y
-        (seed 000 indexes ``map(x, y)``: use ``world.T``); ``resolution``;
+        (MATLAB code often indexes ``map(x, y)``: use ``world.T``); ``resolution``;
         ``dt``; ``zmax``; ``beam_angles (36,)`` rad; ``speed (S,)``,
         ``rotation_speed (S,)``; ``states (S + 1, 3)`` true ``(x, y, theta)``;
         ``scans (S, 36)`` measured after step ``k`` at ``states[k + 1]``;

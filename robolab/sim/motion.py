@@ -48,7 +48,7 @@ class Controller:
 
 
 def _step_pose(x: float, y: float, th: float, v: float, w: float, dt: float, model: str):
-    """Advance a unicycle by ``dt``: exact circular arc, or the Euler step of seed 000."""
+    """Advance a unicycle by ``dt``: exact circular arc, or the Euler step of lab 06."""
     if model == "euler":
         return x + v * np.cos(th) * dt, y + v * np.sin(th) * dt, wrap_angle(th + w * dt)
     if abs(w) < 1e-9:
@@ -85,7 +85,7 @@ def follow_route(
         Gains and limits.
     model : {"arc", "euler"}
         Motion integration: the exact circular arc of a constant ``(v, w)``
-        (the bags), or seed 000's Euler model ``x += v cos(theta) dt``,
+        (the bags), or lab 06's Euler model ``x += v cos(theta) dt``,
         ``theta += w dt`` (the EKF world).
     control_noise : (sigma_v, sigma_w)
         Standard deviations of Gaussian noise added to the *executed*

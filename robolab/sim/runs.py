@@ -1,4 +1,4 @@
-"""The bundled runs: routes, start poses, seeds and durations."""
+"""The bundled runs: routes, start poses, random seeds and durations."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 from robolab.maps import OccupancyGrid
 from robolab.sim.run import SimRun, simulate
 
-#: Seeds of the bundled data sets.
+#: Random seeds of the bundled data sets.
 SEEDS = {"mapping": 4, "localization": 5, "ekf_world": 6}
 #: Length of the bundled runs, seconds.
 MAPPING_DURATION = 80.0
