@@ -17,7 +17,7 @@ __all__ = ["check_bayes_posterior", "check_door_open_posterior", "check_bayes_fi
 
 @check
 def check_bayes_posterior(bayes_posterior):
-    """The door numbers of section 1 as vectors over (open, closed); a 3-state posterior sums to 1."""
+    """The door numbers as vectors over (open, closed); a 3-state posterior sums to 1."""
     post = bayes_posterior(np.array([2 / 3, 1 / 3]), np.array([3 / 5, 2 / 5]))
     expect_shape("bayes_posterior(likelihood (2,), prior (2,))", post, (2,))
     expect_close("posterior for likelihood [2/3, 1/3] and prior [3/5, 2/5]", post, [0.75, 0.25])
@@ -45,7 +45,7 @@ def check_bayes_posterior(bayes_posterior):
 
 @check
 def check_door_open_posterior(door_open_posterior):
-    """The door problem of section 1: p(z|open) = 2/3, p(z|closed) = 1/3, p(open) = 3/5 gives 3/4."""
+    """The door problem: p(z|open) = 2/3, p(z|closed) = 1/3, p(open) = 3/5 gives exactly 3/4."""
     p = door_open_posterior(2 / 3, 1 / 3, 3 / 5)
     if np.ndim(p) != 0:
         raise CheckFailed(f"expected a single number, got shape {np.shape(p)}")
