@@ -450,21 +450,52 @@ def _inv2(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _ekf_update(mu, sigma, zz, p, qt):
-    """The body of :func:`update_landmark` on checked arrays (called once per round by the step)."""
-    zhat = _range_bearing(mu, p)
-    H = _range_bearing_jacobian(mu, p)
-    Ht = np.swapaxes(H, -1, -2)
-    PHt = sigma @ Ht
-    S = H @ PHt + qt
-    S_inv, det_S = _inv2(S)
-    K = PHt @ S_inv
-    e = zz - zhat
-    e = np.concatenate([e[..., :1], wrap_angle(e[..., 1:2])], -1)
-    new_mean = mu + (K @ e[..., None])[..., 0]
-    new_cov = sigma - K @ H @ sigma
-    new_cov = 0.5 * (new_cov + np.swapaxes(new_cov, -1, -2))
-    maha = np.einsum("...i,...ij,...j->...", e, S_inv, e)
-    log_like = -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * np.log(det_S)
+    r"""The body of :func:`update_landmark` on checked arrays (called once per round by the step).
+
+    The batched 2 x 2 products are written out entry by entry: numpy's ``@`` on
+    stacks of 2 x 2 matrices costs several times the arithmetic itself. With
+    :math:`H = \begin{pmatrix} a & b \\ c & d \end{pmatrix}` (:func:`h_jacobian`),
+    :math:`P = \Sigma H^T`, :math:`Q = H P + Q_t`, :math:`K = P Q^{-1}`,
+    :math:`\mu' = \mu + K e`, :math:`\Sigma' = \Sigma - (K H) \Sigma`
+    (symmetrized), :math:`\ln w = -\tfrac12 e^T Q^{-1} e - \ln 2\pi - \tfrac12 \ln|Q|`.
+    """
+    dx = mu[..., 0] - p[..., 0]
+    dy = mu[..., 1] - p[..., 1]
+    # z_hat = h(mu, x) and H = dh/dmu (the bodies of h and h_jacobian, sharing dx, dy)
+    e0 = zz[..., 0] - np.hypot(dx, dy)
+    e1 = wrap_angle(zz[..., 1] - wrap_angle(np.arctan2(dy, dx) - p[..., 2]))
+    q = np.maximum(dx * dx + dy * dy, MIN_SQ_RANGE)
+    r = np.sqrt(q)
+    a, b, c, d = dx / r, dy / r, -dy / q, dx / q
+    s00, s01, s10, s11 = sigma[..., 0, 0], sigma[..., 0, 1], sigma[..., 1, 0], sigma[..., 1, 1]
+    # P = Sigma H^T
+    p00, p01 = s00 * a + s01 * b, s00 * c + s01 * d
+    p10, p11 = s10 * a + s11 * b, s10 * c + s11 * d
+    # Q = H P + Q_t, its determinant and inverse
+    q00 = a * p00 + b * p10 + qt[0, 0]
+    q01 = a * p01 + b * p11 + qt[0, 1]
+    q10 = c * p00 + d * p10 + qt[1, 0]
+    q11 = c * p01 + d * p11 + qt[1, 1]
+    det = q00 * q11 - q01 * q10
+    i00, i01, i10, i11 = q11 / det, -q01 / det, -q10 / det, q00 / det
+    # K = P Q^-1
+    k00, k01 = p00 * i00 + p01 * i10, p00 * i01 + p01 * i11
+    k10, k11 = p10 * i00 + p11 * i10, p10 * i01 + p11 * i11
+    shape = np.broadcast_shapes(mu.shape, sigma.shape[:-1], zz.shape, p.shape[:-1] + (2,))
+    new_mean = np.empty(shape)
+    new_mean[..., 0] = mu[..., 0] + k00 * e0 + k01 * e1
+    new_mean[..., 1] = mu[..., 1] + k10 * e0 + k11 * e1
+    # Sigma' = Sigma - (K H) Sigma, symmetrized
+    m00, m01 = k00 * a + k01 * c, k00 * b + k01 * d
+    m10, m11 = k10 * a + k11 * c, k10 * b + k11 * d
+    new_cov = np.empty(shape + (2,))
+    new_cov[..., 0, 0] = s00 - (m00 * s00 + m01 * s10)
+    new_cov[..., 1, 1] = s11 - (m10 * s01 + m11 * s11)
+    off = 0.5 * ((s01 - (m00 * s01 + m01 * s11)) + (s10 - (m10 * s00 + m11 * s10)))
+    new_cov[..., 0, 1] = off
+    new_cov[..., 1, 0] = off
+    maha = e0 * (i00 * e0 + i01 * e1) + e1 * (i10 * e0 + i11 * e1)
+    log_like = -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * np.log(det)
     return new_mean, new_cov, log_like
 
 

@@ -105,8 +105,16 @@ def _check_grid(grid):
 
 
 def _layer(name, value, grid):
-    """A float copy of a per-cell array of the grid's shape, finite."""
-    return as_array(name, value, shape=grid.shape, finite=True).copy()
+    """A float copy of a per-cell array of the grid's shape, checked finite.
+
+    The copy is the only full-map pass of an update: the check is two reductions
+    (min and max propagate NaN, and are infinite exactly when an entry is), not
+    per-cell temporaries.
+    """
+    out = np.array(as_array(name, value, shape=grid.shape), dtype=float, copy=True)
+    if out.size and not (np.isfinite(out.min()) and np.isfinite(out.max())):
+        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    return out
 
 
 def scan_endpoints(scan, pose, laser_offset):
@@ -313,7 +321,7 @@ def counting_map_update(hits, visits, scan, pose, grid):
     grid = _check_grid(grid)
     hits = _layer("hits", hits, grid)
     visits = _layer("visits", visits, grid)
-    if np.any(hits < 0) or np.any(visits < 0):
+    if (hits.size and hits.min() < 0) or (visits.size and visits.min() < 0):
         raise ValueError("hits and visits must be non-negative counts")
     ranges, angles, rmin, rmax = _scan_arrays(scan)
     laser = _pose("pose", pose)
@@ -322,13 +330,13 @@ def counting_map_update(hits, visits, scan, pose, grid):
         return hits, visits
     start = grid.world_to_map(laser[:2])[::-1]
     cells, beam = beam_cells(start, grid.world_to_map(ends)[:, ::-1])
+    # Counts are added on the crossed cells only (np.add.at sums repeated cells), so an
+    # update costs in proportion to the beams' cells, not to the map (beyond the copy).
     inside = grid.contains_cell(cells)
-    flat = np.ravel_multi_index((cells[inside, 0], cells[inside, 1]), grid.shape)
-    visits += np.bincount(flat, minlength=visits.size).reshape(grid.shape)
+    np.add.at(visits, (cells[inside, 0], cells[inside, 1]), 1.0)
     end_cells = grid.world_to_cell(ends[is_hit])  # the last cell of each hit beam
     ok = grid.contains_cell(end_cells)
-    flat = np.ravel_multi_index((end_cells[ok, 0], end_cells[ok, 1]), grid.shape)
-    hits += np.bincount(flat, minlength=hits.size).reshape(grid.shape)
+    np.add.at(hits, (end_cells[ok, 0], end_cells[ok, 1]), 1.0)
     return hits, visits
 
 
