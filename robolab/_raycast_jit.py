@@ -1,9 +1,9 @@
 """The compiled ray-casting kernels of :mod:`robolab.raycast` (numba, one core).
 
 Imported lazily by :mod:`robolab.raycast` the first time a grid is cast on
-(``import numba`` costs a few tenths of a second, so ``import robolab`` stays
-fast); when numba is missing or unusable, :mod:`robolab.raycast` falls back
-to its pure-numpy path, which gives the same ranges.
+(``import numba`` and loading the kernels cost about a second, so ``import
+robolab`` stays fast); when numba is missing or unusable, :mod:`robolab.raycast`
+falls back to its pure-numpy path, which gives the same ranges.
 
 Two kernels, both plain loops that numba compiles once (and caches on disk):
 
@@ -11,7 +11,8 @@ Two kernels, both plain loops that numba compiles once (and caches on disk):
   chessboard distance from every cell to the nearest obstacle cell *ahead*,
   by the largest-empty-square recurrence (one raster pass per quadrant);
 * :func:`cast`: every ray's exact Amanatides-Woo traversal, accelerated by
-  safe jumps over those fields (one ray at a time, no cap on the jump).
+  safe jumps over those fields (no cap on the jump), eight rays in flight at
+  a time so that their memory look-ups overlap.
 
 The semantics, the safety argument and the references are in the docstring
 of :mod:`robolab.raycast`.
@@ -88,7 +89,7 @@ def cast(fields, uv, heading, angles, limit, h, w):  # pragma: no cover - compil
 
     Parameters
     ----------
-    fields : uint8 or uint16 array, shape (4, h + 2, w + 2)
+    fields : uint16 array, shape (4, h + 2, w + 2)
         :func:`quadrant_fields` of the map padded by one free cell on every side.
     uv : float array, shape (N, 2)
         Ray origins in continuous map coordinates (cells, unpadded).
