@@ -173,7 +173,7 @@ def startup_seconds() -> float:
 
 def main() -> None:
     pinned = timing.pin_to_one_core()
-    load0 = os.getloadavg()
+    load0 = timing.load_average()
     rlc = load_range_libc()
     backend = raycast.warm_up()
     if backend != "numba":
@@ -191,9 +191,11 @@ def main() -> None:
         f"cast_rays, {N_POSES} poses x {N_BEAMS} beams = {n_rays} rays, {pinned}, "
         f"best of {REPEATS} interleaved rounds (process CPU time)"
     )
-    print(f"load average before: {load0[0]:.2f} {load0[1]:.2f} {load0[2]:.2f}")
+    print(f"before: {load0}")
     if backend == "numba":
-        print(f"one-time start-up per process (import numba, load kernels): {startup_seconds():.2f} s")
+        print(
+            f"one-time start-up per process (import numba, load kernels): {startup_seconds():.2f} s"
+        )
     head = (
         f"{'map':<19} {'range':>5} | {'cast ms: numba':>14} {'numpy':>7} {'CDDT':>7}"
         f" | {'CDDT/numba':>10} {'numpy/numba':>11} | {'build ms: numba':>15} {'numpy':>7}"
@@ -211,7 +213,7 @@ def main() -> None:
         build = interleaved(builds, 3)
         made = {k: f() for k, f in builds.items()}
         casts = {
-            k: (lambda c=c: c.cast(poses, angles, max_range))
+            k: (lambda c=c, p=poses, m=max_range: c.cast(p, angles, m))
             for k, c in made.items()
             if k != "cddt"
         }
@@ -243,7 +245,7 @@ def main() -> None:
         def ms(key, table):
             return f"{table[key] * 1e3:.1f}" if key in table else "-"
 
-        def ratio(num, den):
+        def ratio(num, den, best=best):
             return f"{best[num] / best[den]:.2f}x" if num in best and den in best else "-"
 
         print(
@@ -252,8 +254,7 @@ def main() -> None:
             f" | {ms('numba', build):>15} {ms('numpy', build):>7} {ms('cddt', build):>7}"
             f" | {off:>16}"
         )
-    load1 = os.getloadavg()
-    print(f"load average after: {load1[0]:.2f} {load1[1]:.2f} {load1[2]:.2f}")
+    print(f"after: {timing.load_average()}")
 
 
 if __name__ == "__main__":

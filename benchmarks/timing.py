@@ -52,6 +52,14 @@ def pin_to_one_core() -> str:
     return f"pinned to CPU {cpu}"
 
 
+def load_average() -> str:
+    """The machine's 1, 5 and 15 minute load averages, for a header (the host is shared)."""
+    if not hasattr(os, "getloadavg"):
+        return "load average unavailable"
+    one, five, fifteen = os.getloadavg()
+    return f"load average {one:.2f} {five:.2f} {fifteen:.2f} on {os.cpu_count()} CPUs"
+
+
 @dataclass(frozen=True)
 class Timing:
     """Best (minimum) wall-clock and process-CPU seconds over the repeats, each on its own."""

@@ -132,8 +132,18 @@ def cast(fields, uv, heading, angles, limit, h, w):  # pragma: no cover - compil
             if m < 0:
                 continue
             u0, v0, idx, idy, adx, ady, ax, ay, t, t_end, dx, dy = (
-                fs[0, k], fs[1, k], fs[2, k], fs[3, k], fs[4, k], fs[5, k],
-                fs[6, k], fs[7, k], fs[8, k], fs[9, k], fs[10, k], fs[11, k],
+                fs[0, k],
+                fs[1, k],
+                fs[2, k],
+                fs[3, k],
+                fs[4, k],
+                fs[5, k],
+                fs[6, k],
+                fs[7, k],
+                fs[8, k],
+                fs[9, k],
+                fs[10, k],
+                fs[11, k],
             )
             ci, ri, sx, sy, koff = ints[0, k], ints[1, k], ints[2, k], ints[3, k], ints[4, k]
             s = flat[koff + ri * wp + ci]
@@ -164,7 +174,9 @@ def cast(fields, uv, heading, angles, limit, h, w):  # pragma: no cover - compil
                         ci = int(u0 + t * dx)
                 done = t >= t_end
             if done:
-                nxt = _refill(k, nxt, n * b, b, uv, ch, sh, ca, sa, limit, h, w, plane, fs, ints, ray, out)
+                nxt = _refill(
+                    k, nxt, n * b, b, uv, ch, sh, ca, sa, limit, h, w, plane, fs, ints, ray, out
+                )
                 if ray[k] < 0:
                     live -= 1
             else:
@@ -175,7 +187,9 @@ def cast(fields, uv, heading, angles, limit, h, w):  # pragma: no cover - compil
 
 
 @njit(inline="always")
-def _refill(k, nxt, total, b, uv, ch, sh, ca, sa, limit, h, w, plane, fs, ints, ray, out):  # pragma: no cover
+def _refill(
+    k, nxt, total, b, uv, ch, sh, ca, sa, limit, h, w, plane, fs, ints, ray, out
+):  # pragma: no cover
     """Put the next ray that enters the map (from ray ``nxt`` on) into lane ``k``; the new ``nxt``.
 
     Rays that miss the map keep ``out = -1``; ``ray[k] = -1`` when none is left.
@@ -217,7 +231,7 @@ def _refill(k, nxt, total, b, uv, ch, sh, ca, sa, limit, h, w, plane, fs, ints, 
 
 @njit(inline="always")
 def _slab(p, d, inv, inside, size):  # pragma: no cover - compiled
-    """``(t_in, t_out)`` of a ray coordinate against the slab ``[0, size]`` (half-open on a line)."""
+    """``(t_in, t_out)`` of one ray coordinate against the slab ``[0, size]`` (half-open)."""
     if d == 0.0:
         if inside:
             return -math.inf, math.inf

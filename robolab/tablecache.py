@@ -9,8 +9,9 @@ tables per source array and parameters.
 The cache is only ever used for arrays that cannot change: a **read-only**
 array (``flags.writeable`` false) whose memory is not reachable through a
 writeable base array (:func:`is_frozen`). :func:`freeze` makes such an array
-(the reference solution of lab 05 returns its likelihood field's arrays frozen). Any other array gets a freshly built table on
-every call (correct, just not cached). Entries are dropped when their source
+(the reference solution of lab 05 returns its likelihood field's arrays
+frozen). Any other array gets a freshly built table on every call (correct,
+just not cached). Entries are dropped when their source
 array is garbage collected.
 
 Examples

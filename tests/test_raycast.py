@@ -18,13 +18,14 @@ from robolab.raycast import RayCaster, cast_rays, castrays, castraysingle
 
 @pytest.fixture(autouse=True, params=raycast.BACKENDS)
 def backend(request, monkeypatch):
-    """Run the test with casters of one backend (fresh cache, so no caster of the other leaks in)."""
+    """Run the test with casters of one backend (a fresh cache: no caster of the other leaks in)."""
     if request.param == "numba" and raycast._jit() is None:
         pytest.skip("numba is not installed")
     monkeypatch.setattr(raycast, "default_backend", lambda: request.param)
     monkeypatch.setattr(raycast, "_CACHE", weakref.WeakKeyDictionary())
     monkeypatch.setenv("ROBOLAB_RAYCAST", request.param)  # for the subprocess tests
     return request.param
+
 
 RIGHT, UP, LEFT, DOWN = 0.0, np.pi / 2, np.pi, -np.pi / 2
 FOUR = [RIGHT, UP, LEFT, DOWN]
