@@ -317,9 +317,12 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
     obs = _observations(observations, n_landmarks)
     qt = check_covariance("Qt", Qt, 2, definite=True)
     poses = predict_poses(s["poses"], command, Q, rng, dt)  # checks command, Q, rng, dt
-    means, covs, seen = s["means"].copy(), s["covs"].copy(), s["seen"].copy()
     log_w = np.log(s["weights"], out=np.full_like(s["weights"], -np.inf), where=s["weights"] > 0)
-    ids = obs[:, 2].astype(np.intp)
+    # Work on copies of the observed landmarks' columns only; the full arrays are
+    # copied once, at the end (gathered by the resampling indices when resampling).
+    touched, cols = np.unique(obs[:, 2].astype(np.intp), return_inverse=True)
+    means, covs, seen = s["means"][:, touched], s["covs"][:, touched], s["seen"][:, touched]
+    ids = cols.reshape(-1)
     remaining = np.arange(len(obs))
     while remaining.size:  # rounds of distinct landmark ids (one round unless ids repeat)
         _, first = np.unique(ids[remaining], return_index=True)
@@ -335,11 +338,12 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
         means[:, j], covs[:, j], seen[:, j] = new_mu, new_sigma, True
         log_w = log_w + log_like.sum(axis=1)
     weights = _normalize_log_weights(log_w)
-    new = {"poses": poses, "means": means, "covs": covs, "seen": seen, "weights": weights}
-    if resample and len(obs):
-        idx = _low_variance_resample(weights, rng)
-        new = {key: value[idx] for key, value in new.items() if key != "weights"}
-        new["weights"] = np.full(len(idx), 1.0 / len(idx))
+    idx = _low_variance_resample(weights, rng) if resample and len(obs) else slice(None)
+    new = {"poses": poses[idx]}
+    for key, part in (("means", means), ("covs", covs), ("seen", seen)):
+        new[key] = s[key][idx].copy() if isinstance(idx, slice) else s[key][idx]
+        new[key][:, touched] = part[idx]
+    new["weights"] = weights if isinstance(idx, slice) else np.full(len(poses), 1.0 / len(poses))
     return new
 
 

@@ -104,16 +104,20 @@ def _check_grid(grid):
     return grid
 
 
-def _layer(name, value, grid):
-    """A float copy of a per-cell array of the grid's shape, checked finite.
+def _layer(name, value, grid, counts=False):
+    """A float copy of a per-cell array of the grid's shape, checked finite (and >= 0 for counts).
 
-    The copy is the only full-map pass of an update: the check is two reductions
-    (min and max propagate NaN, and are infinite exactly when an entry is), not
-    per-cell temporaries.
+    Besides the copy (the updates return new arrays), the check is two reductions
+    -- min and max propagate NaN and are infinite exactly when an entry is -- and
+    no per-cell temporaries, so an update's other work scales with the beams.
     """
     out = np.array(as_array(name, value, shape=grid.shape), dtype=float, copy=True)
-    if out.size and not (np.isfinite(out.min()) and np.isfinite(out.max())):
-        raise ValueError(f"{name} must be finite (no NaN or inf)")
+    if out.size:
+        lo, hi = out.min(), out.max()
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise ValueError(f"{name} must be finite (no NaN or inf)")
+        if counts and lo < 0:
+            raise ValueError("hits and visits must be non-negative counts")
     return out
 
 
@@ -319,10 +323,8 @@ def counting_map_update(hits, visits, scan, pose, grid):
         cell by cell whenever it held before.
     """
     grid = _check_grid(grid)
-    hits = _layer("hits", hits, grid)
-    visits = _layer("visits", visits, grid)
-    if (hits.size and hits.min() < 0) or (visits.size and visits.min() < 0):
-        raise ValueError("hits and visits must be non-negative counts")
+    hits = _layer("hits", hits, grid, counts=True)
+    visits = _layer("visits", visits, grid, counts=True)
     ranges, angles, rmin, rmax = _scan_arrays(scan)
     laser = _pose("pose", pose)
     ends, is_hit = _beam_ends(ranges, angles, rmin, rmax, laser)
