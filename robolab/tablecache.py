@@ -49,6 +49,8 @@ def freeze(array) -> np.ndarray:
 
 def is_frozen(array) -> bool:
     """Whether ``array`` is a numpy array that nothing can write to (itself and every base)."""
+    if not isinstance(array, np.ndarray):
+        return False
     a = array
     while isinstance(a, np.ndarray):
         if a.flags.writeable:
