@@ -25,8 +25,22 @@ import math
 import numpy as np
 from numba import njit
 
-#: Largest field value (uint16); larger distances saturate, which only shortens jumps.
-FIELD_MAX = 65535
+#: Field codes are one byte: 0 marks an obstacle, ``v`` in 1..127 is the distance
+#: ``D = v`` itself, and ``v`` in 128..255 stands for ``D >= 128 + 32 (v - 128)``
+#: (rounded down: a shorter jump is always safe), up to :data:`FIELD_MAX` cells.
+#: One byte per cell halves the fields' memory (they are read at random).
+LINEAR, STEP = 128, 32
+FIELD_MAX = LINEAR + STEP * (255 - LINEAR)
+#: ``DECODE[v]``: the distance ``D`` (cells) that code ``v`` guarantees.
+DECODE = np.array([v if v < LINEAR else LINEAR + STEP * (v - LINEAR) for v in range(256)])
+
+
+@njit(cache=True, nogil=True)
+def encode(d):  # pragma: no cover - compiled
+    """The code of distance ``d >= 0`` (the largest ``v`` with ``DECODE[v] <= d``)."""
+    if d < LINEAR:
+        return d
+    return min(LINEAR + (d - LINEAR) // STEP, 255)
 
 
 @njit(cache=True, nogil=True)
@@ -40,41 +54,41 @@ def quadrant_fields(occ):  # pragma: no cover - compiled (run through the tests)
     ``(r', c')`` with ``sx (c' - c) >= 0`` and ``sy (r' - r) >= 0``,
 
     the side of the largest obstacle-free square with its corner at ``(r, c)``
-    that extends along ``(sx, sy)``; 0 on obstacles, saturated at
-    :data:`FIELD_MAX` (the map's outside counts as free). The recurrence
-    ``D(r, c) = 1 + min(D(r + sy, c), D(r, c + sx), D(r + sy, c + sx))`` computes
-    it in one pass. The Euclidean distance between the squares of ``(r, c)``
-    and of such an obstacle is at least ``max(|dr|, |dc|) - 1``, so a ray in
-    that quadrant can safely advance ``D_q - 1`` cells.
+    that extends along ``(sx, sy)``; 0 on obstacles (the map's outside counts as
+    free). The recurrence ``D(r, c) = 1 + min(D(r + sy, c), D(r, c + sx),
+    D(r + sy, c + sx))`` computes it in one pass, two rows at a time. The
+    Euclidean distance between the squares of ``(r, c)`` and of such an
+    obstacle is at least ``max(|dr|, |dc|) - 1``: a ray in that quadrant can
+    safely advance ``D_q - 1`` cells (see :func:`cast` for the longer jump used).
 
     Returns
     -------
-    numpy.ndarray of uint16, shape (4, H, W)
+    numpy.ndarray of uint8, shape (4, H, W)
+        The codes of ``D_q`` (:data:`DECODE`).
     """
     h, w = occ.shape
-    out = np.empty((4, h, w), np.uint16)
+    out = np.empty((4, h, w), np.uint8)
+    big = 1 << 30
+    prev = np.empty(w, np.int64)
+    cur = np.empty(w, np.int64)
     for q in range(4):
         sx = -1 if q & 1 else 1
         sy = -1 if q & 2 else 1
-        f = out[q]
         r0, r1 = (h - 1, -1) if sy > 0 else (0, h)
         c0, c1 = (w - 1, -1) if sx > 0 else (0, w)
+        prev[:] = big  # the row beyond the map: free
         for r in range(r0, r1, -sy):
-            rn = r + sy
-            row_in = 0 <= rn < h
             for c in range(c0, c1, -sx):
                 if occ[r, c]:
-                    f[r, c] = 0
-                    continue
-                cn = c + sx
-                m = FIELD_MAX - 1
-                if 0 <= cn < w:
-                    m = min(m, f[r, cn])
-                    if row_in:
-                        m = min(m, f[rn, cn])
-                if row_in:
-                    m = min(m, f[rn, c])
-                f[r, c] = m + 1
+                    cur[c] = 0
+                else:
+                    cn = c + sx
+                    m = prev[c]
+                    if 0 <= cn < w:
+                        m = min(m, cur[cn], prev[cn])
+                    cur[c] = min(m, big - 1) + 1
+                out[q, r, c] = encode(cur[c])
+            prev, cur = cur, prev
     return out
 
 
@@ -89,7 +103,7 @@ def cast(fields, uv, heading, angles, limit, h, w):  # pragma: no cover - compil
 
     Parameters
     ----------
-    fields : uint16 array, shape (4, h + 2, w + 2)
+    fields : uint8 array, shape (4, h + 2, w + 2)
         :func:`quadrant_fields` of the map padded by one free cell on every side.
     uv : float array, shape (N, 2)
         Ray origins in continuous map coordinates (cells, unpadded).
@@ -146,9 +160,10 @@ def cast(fields, uv, heading, angles, limit, h, w):  # pragma: no cover - compil
                 fs[11, k],
             )
             ci, ri, sx, sy, koff = ints[0, k], ints[1, k], ints[2, k], ints[3, k], ints[4, k]
-            s = flat[koff + ri * wp + ci]
+            code = flat[koff + ri * wp + ci]
+            s = int(DECODE[code])
             done = False
-            if s == 0:
+            if code == 0:
                 out[m] = t
                 done = True
             else:

@@ -85,7 +85,8 @@ round-off, ~1e-13 cells):
   interleaved so that their memory look-ups overlap. Its jump fields are
   chessboard distances ``D_q(c) = min max(|di|, |dj|)`` over the obstacles of
   ``Q_q(c)``, built by the largest-empty-square recurrence in one pass per
-  quadrant and stored in 16 bits (no jump cap below 65535 cells). Every
+  quadrant and stored in one byte each (exact up to 127 cells, then rounded
+  down to steps of 32 cells up to 4192: no 63-cell cap). Every
   obstacle ahead is then at least ``D_q`` columns or ``D_q`` rows away, so the
   ray safely advances to the first time it has crossed ``D_q - 1`` more
   columns or rows than the current cell's exit,
