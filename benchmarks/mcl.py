@@ -111,12 +111,12 @@ def main() -> None:
 
     rows = []
     size_rows = map_size_rows(data, scan, prm, rng)
-    t_model = timing.best_of(mcl.likelihood_field_model, 20, scan, particles, field, prm).wall
+    t_model = timing.best_of(mcl.likelihood_field_model, 20, scan, particles, field, prm).cpu
     t_step = timing.best_of(
         mcl.mcl_step, 20, particles, weights, data.odom[99], data.odom[100], scan, field, prm, rng
-    ).wall
+    ).cpu
     t_loop = (
-        timing.best_of(_loop_model, 3, scan, particles[:SUBSET], field, data.laser_pose).wall
+        timing.best_of(_loop_model, 3, scan, particles[:SUBSET], field, data.laser_pose).cpu
         * N_STEP
         / SUBSET
     )
@@ -142,6 +142,7 @@ def main() -> None:
         f"likelihood field 0.05 m, "
         f"{data.grid.shape[1]} x {data.grid.shape[0]} cells)"
     )
+    print("times are process CPU time (the machine is shared), best of 20 (the loop: of 3)")
     print(f"{'what':58s} {'particles':>9s} {'time [ms]':>10s} {'rate [Hz]':>10s} {'vs loop':>8s}")
     for name, n, sec, gain in rows:
         print(f"{name:58s} {n:9d} {sec * 1e3:10.2f} {1 / sec:10.1f} {gain:7.0f}x")
