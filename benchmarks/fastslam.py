@@ -126,7 +126,6 @@ def ekf_update_matmul(mu, sigma, zz, p, qt):
 
 def big_workload():
     """Steps/s (CPU) of the spelled-out and the batched-@ EKF update, 1000 x 100, interleaved."""
-    import time
 
     run = FiducialRobot(seed=0, n_fiducials=BIG_K, n_steps=BIG_STEPS).to_run()
     steps = [(run.commands[t], run.observations(t)) for t in range(BIG_STEPS)]
@@ -150,12 +149,13 @@ def big_workload():
 
     a, b = replay(fs._ekf_update), replay(ekf_update_matmul)  # warm-up; same filter
     assert np.allclose(a["means"], b["means"], atol=1e-9) and np.allclose(a["poses"], b["poses"])
-    best = {"spelled out": np.inf, "batched @": np.inf}
-    for _ in range(3):
-        for name, update in (("spelled out", fs._ekf_update), ("batched @", ekf_update_matmul)):
-            c0 = time.process_time()
-            replay(update)
-            best[name] = min(best[name], time.process_time() - c0)
+    best = timing.interleaved(
+        {
+            "spelled out": lambda: replay(fs._ekf_update),
+            "batched @": lambda: replay(ekf_update_matmul),
+        },
+        3,
+    )
     n_obs = sum(len(z) for _, z in steps) / BIG_STEPS
     return best, n_obs
 

@@ -90,12 +90,7 @@ def map_size_rows(data, scan, prm, rng):
             )
     for fn in calls.values():  # warm-up (and the cache's first build)
         fn()
-    best = dict.fromkeys(calls, np.inf)
-    for _ in range(20):
-        for key, fn in calls.items():
-            c0 = time.process_time()
-            fn()
-            best[key] = min(best[key], time.process_time() - c0)
+    best = timing.interleaved(calls, 20)
     return [(name, sizes[name], best[name, "cached"], best[name, "rebuilt"]) for name in sizes]
 
 

@@ -24,7 +24,6 @@ Run: ``python benchmarks/odometry_mapping.py``
 from __future__ import annotations
 
 import math
-import time
 
 import timing  # before numpy: one BLAS thread
 
@@ -128,12 +127,7 @@ def map_size_table(scans, poses, grid):
     a = calls["counting", "16x cells"]()
     b = calls["counting before (full-map bincount)", "16x cells"]()
     assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
-    best = dict.fromkeys(calls, np.inf)
-    for _ in range(3):
-        for key, fn in calls.items():
-            c0 = time.process_time()
-            fn()
-            best[key] = min(best[key], time.process_time() - c0)
+    best = timing.interleaved(calls, 3)
     n = len(scans[subset])
     print(
         f"per-scan cost vs map size (CPU ms per scan, {n} scans; office {grid.data.size} cells, "

@@ -40,7 +40,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import timing  # before numpy: one BLAS thread
@@ -150,17 +149,6 @@ class Cddt:
         return np.minimum(self.out.reshape(shape), self.cells) * self.grid.resolution
 
 
-def interleaved(fns: dict, repeats: int) -> dict:
-    """Best process-CPU seconds of each function, calling them in turn ``repeats`` times."""
-    best = dict.fromkeys(fns, math.inf)
-    for _ in range(repeats):
-        for name, fn in fns.items():
-            c0 = time.process_time()
-            fn()
-            best[name] = min(best[name], time.process_time() - c0)
-    return best
-
-
 def startup_seconds() -> float:
     """Wall seconds a fresh process needs to import robolab.raycast and load the kernels."""
     code = (
@@ -210,7 +198,7 @@ def main() -> None:
             builds["numba"] = lambda g=grid: RayCaster(g, backend="numba")
         if rlc is not None:
             builds["cddt"] = lambda g=grid, m=max_range: Cddt(rlc, g, m)
-        build = interleaved(builds, 3)
+        build = timing.interleaved(builds, 3)
         made = {k: f() for k, f in builds.items()}
         casts = {
             k: (lambda c=c, p=poses, m=max_range: c.cast(p, angles, m))
@@ -220,7 +208,7 @@ def main() -> None:
         if rlc is not None:
             made["cddt"].prepare(poses, angles)
             casts["cddt"] = made["cddt"].cast
-        best = interleaved(casts, REPEATS)
+        best = timing.interleaved(casts, REPEATS)
 
         # exactness: both backends against the per-ray Python loop on a subset of rays
         occ = grid.occupied.tolist()

@@ -85,5 +85,22 @@ def best_of(fn: Callable[..., Any], repeats: int, *args: Any, **kwargs: Any) -> 
     return Timing(wall, cpu)
 
 
+def interleaved(fns: dict, repeats: int) -> dict:
+    """Best process-CPU seconds of each function of ``fns``, calling them in turn each round.
+
+    Interleaving (one call of every contender per round, ``repeats`` rounds) gives
+    each the same share of the machine's noise, so their ratios are fair on a shared host.
+    """
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats}")
+    best = dict.fromkeys(fns, float("inf"))
+    for _ in range(repeats):
+        for key, fn in fns.items():
+            c0 = time.process_time()
+            fn()
+            best[key] = min(best[key], time.process_time() - c0)
+    return best
+
+
 if __name__ == "__main__":
     print("benchmarks/timing.py: shared timing helpers for the other benchmarks (nothing to run)")
