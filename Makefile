@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 
 export MPLBACKEND := Agg
 
-.PHONY: help venv test grade lab bench data lint clean
+.PHONY: help venv test grade lab bench data lint notebooks clean
 
 help:
 	@echo "make grade   set up, then grade the example submissions (gradebook in grades/)"
@@ -16,6 +16,7 @@ help:
 	@echo "make bench   run the benchmarks and print their tables"
 	@echo "make data    regenerate data/ with the simulator"
 	@echo "make lint    ruff"
+	@echo "make notebooks  rebuild notebooks/*.ipynb from their text sources notebooks/*.py"
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -44,6 +45,9 @@ data: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check robolab solutions tests benchmarks
+
+notebooks: $(STAMP)
+	$(BIN)/python tools/sync_notebooks.py
 
 clean:
 	rm -rf $(VENV) build grades .pytest_cache
