@@ -566,3 +566,15 @@ def test_without_numba_the_numpy_fallback_is_used():
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert run.returncode == 0, run.stderr
     assert run.stdout.split() == ["numpy", "2.5", "True"]
+
+
+def test_reference_casts_are_the_numpy_backend_bit_for_bit():
+    # robolab data generates files with cast_rays_reference: it must not depend on numba.
+    rng = np.random.default_rng(9)
+    g = OccupancyGrid((rng.random((30, 40)) < 0.1).astype(float), 0.1, origin=[0.3, -0.2, 0.4])
+    poses = np.column_stack([rng.uniform(0, 3, (50, 2)), rng.uniform(-np.pi, np.pi, 50)])
+    angles = np.linspace(-np.pi, np.pi, 19)
+    ref = raycast.cast_rays_reference(g, poses, angles, 2.5)
+    assert raycast._caster_for(g, reference=True).backend == "numpy"
+    np.testing.assert_array_equal(ref, RayCaster(g, backend="numpy").cast(poses, angles, 2.5))
+    np.testing.assert_allclose(ref, cast_rays(g, poses, angles, 2.5), rtol=0, atol=1e-9)
