@@ -101,7 +101,9 @@ cost about a second, once per process, the first time a grid is cast on (the
 very first run after an install also compiles them, some seconds; later runs
 reuse the cache). :func:`warm_up` pays that cost up front. The environment
 variable ``ROBOLAB_RAYCAST=numpy`` forces the fallback (``=numba`` requires
-numba), read when the first caster is built.
+numba), read when the first caster is built. :func:`cast_rays_reference`
+always uses the numpy backend, for results that must be bit-for-bit the same
+on every install.
 
 References
 ----------
