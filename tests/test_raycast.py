@@ -578,3 +578,21 @@ def test_reference_casts_are_the_numpy_backend_bit_for_bit():
     assert raycast._caster_for(g, reference=True).backend == "numpy"
     np.testing.assert_array_equal(ref, RayCaster(g, backend="numpy").cast(poses, angles, 2.5))
     np.testing.assert_allclose(ref, cast_rays(g, poses, angles, 2.5), rtol=0, atol=1e-9)
+
+
+def test_long_rays_on_a_sparse_map_match_the_exact_traversal():
+    # Jumps of hundreds of cells (past the one-byte codes' exact range of 127 cells and
+    # across their 32-cell rounding) must still stop at the first obstacle entered.
+    rng = np.random.default_rng(12)
+    occ = np.zeros((640, 700), dtype=bool)
+    occ[rng.integers(0, 640, 120), rng.integers(0, 700, 120)] = True  # scattered cells
+    occ[300:303, 100:600] = True  # a long thin wall
+    g = OccupancyGrid(occ.astype(float), 1.0)
+    free = np.argwhere(~occ)[rng.integers(int((~occ).sum()), size=20)]
+    uv = free[:, ::-1] + rng.uniform(0, 1, (20, 2))
+    poses = np.column_stack([uv, rng.uniform(-np.pi, np.pi, 20)])
+    angles = np.concatenate([rng.uniform(-np.pi, np.pi, 8), [0.0, np.pi / 2, np.pi, -np.pi / 2]])
+    got = cast_rays(g, poses, angles, 900.0)
+    want = np.array([[_exact_ray(occ, u, v, th + a, 900.0) for a in angles] for u, v, th in poses])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    assert np.any((want > 200) & (want < 900))  # long hits were exercised
