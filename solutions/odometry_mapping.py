@@ -107,9 +107,21 @@ def _check_grid(grid):
     return grid
 
 
-def _layer(name, value, grid):
-    """A float copy of a per-cell array of the grid's shape, finite."""
-    return as_array(name, value, shape=grid.shape, finite=True).copy()
+def _layer(name, value, grid, counts=False):
+    """A float copy of a per-cell array of the grid's shape, checked finite (and >= 0 for counts).
+
+    Besides the copy (the updates return new arrays), the check is two reductions
+    -- min and max propagate NaN and are infinite exactly when an entry is -- and
+    no per-cell temporaries, so an update's other work scales with the beams.
+    """
+    out = np.array(as_array(name, value, shape=grid.shape), dtype=float, copy=True)
+    if out.size:
+        lo, hi = out.min(), out.max()
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise ValueError(f"{name} must be finite (no NaN or inf)")
+        if counts and lo < 0:
+            raise ValueError("hits and visits must be non-negative counts")
+    return out
 
 
 def scan_endpoints(scan, pose, laser_offset):
@@ -322,10 +334,8 @@ def counting_map_update(hits, visits, scan, pose, grid):
         cell by cell whenever it held before.
     """
     grid = _check_grid(grid)
-    hits = _layer("hits", hits, grid)
-    visits = _layer("visits", visits, grid)
-    if np.any(hits < 0) or np.any(visits < 0):
-        raise ValueError("hits and visits must be non-negative counts")
+    hits = _layer("hits", hits, grid, counts=True)
+    visits = _layer("visits", visits, grid, counts=True)
     ranges, angles, rmin, rmax = _scan_arrays(scan)
     laser = _pose("pose", pose)
     ends, is_hit = _beam_ends(ranges, angles, rmin, rmax, laser)
@@ -333,13 +343,13 @@ def counting_map_update(hits, visits, scan, pose, grid):
         return hits, visits
     start = grid.world_to_map(laser[:2])[::-1]
     cells, beam = beam_cells(start, grid.world_to_map(ends)[:, ::-1])
+    # Counts are added on the crossed cells only (np.add.at sums repeated cells), so an
+    # update costs in proportion to the beams' cells, not to the map (beyond the copy).
     inside = grid.contains_cell(cells)
-    flat = np.ravel_multi_index((cells[inside, 0], cells[inside, 1]), grid.shape)
-    visits += np.bincount(flat, minlength=visits.size).reshape(grid.shape)
+    np.add.at(visits, (cells[inside, 0], cells[inside, 1]), 1.0)
     end_cells = grid.world_to_cell(ends[is_hit])  # the last cell of each hit beam
     ok = grid.contains_cell(end_cells)
-    flat = np.ravel_multi_index((end_cells[ok, 0], end_cells[ok, 1]), grid.shape)
-    hits += np.bincount(flat, minlength=hits.size).reshape(grid.shape)
+    np.add.at(hits, (end_cells[ok, 0], end_cells[ok, 1]), 1.0)
     return hits, visits
 
 

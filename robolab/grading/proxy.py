@@ -294,6 +294,10 @@ class _Worker:
             "OPENBLAS_NUM_THREADS": "1",
             "OMP_NUM_THREADS": "1",
             "MKL_NUM_THREADS": "1",
+            # Ray casting on its numpy path: numba's on-disk kernel cache cannot be
+            # written from here (read-only package, fresh HOME), so every worker would
+            # compile the kernels anew (seconds of CPU); the ranges are the same.
+            "ROBOLAB_RAYCAST": "numpy",
         }
         try:
             self.process = subprocess.Popen(
