@@ -39,6 +39,7 @@ from typing import Any
 
 import robolab
 from robolab.grading import codec, sandbox
+from robolab.grading.kernel import load_limit
 from robolab.grading.notebook import CellProblem, LoadedNotebook, load_notebook
 from robolab.grading.worker import HEADER
 
@@ -580,7 +581,8 @@ class SubmissionProxy:
             _warn_if_weak(worker.report)
         try:
             deadline = time.monotonic() + self._limits.wall_seconds
-            worker.send(("define", self._notebook.cells), deadline)
+            cell_seconds = load_limit(self._limits.wall_seconds, self._limits.cpu_seconds)
+            worker.send(("define", self._notebook.cells, cell_seconds), deadline)
             message = self._expect(
                 worker, worker.receive(deadline, self._limits.cpu_seconds), "defined"
             )
@@ -594,14 +596,16 @@ class SubmissionProxy:
                 student_traceback=exc.student_traceback,
             )
             if not self._loaded:
-                self.problems.append(CellProblem(-1, "error", self._broken.message))
+                self.problems.append(
+                    CellProblem(-1, "error", self._broken.message, "loading the notebook")
+                )
             raise self._broken from None
         if not self._loaded:
             self._loaded = True
             self.functions = [str(n) for n in message[1] if isinstance(n, str)]
             for problem in message[2]:
                 index, kind, text = problem
-                self.problems.append(CellProblem(int(index), str(kind), str(text)))
+                self.problems.append(self._notebook.problem(int(index), str(kind), str(text)))
         return worker
 
     def _expect(self, worker: _Worker, message: Any, kind: str, call_id: int | None = None) -> Any:
@@ -765,7 +769,7 @@ def open_submission(
     WorkerStartError
         When the worker cannot be started or isolated.
     """
-    notebook = load_notebook(path)
+    notebook = load_notebook(path, lab=lab)
     if lab is not None and notebook.lab is not None and lab != notebook.lab:
         warnings.warn(
             f"{notebook.path} says it is lab {notebook.lab!r}, graded as {lab!r}", stacklevel=2

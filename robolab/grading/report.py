@@ -118,7 +118,8 @@ def render_feedback(result: SubmissionResult) -> str:
         ]
         for p in result.problems:
             lines.append(
-                f"- cell {p.get('cell_index', '?')} ({p.get('kind', 'problem')}): "
+                f"- {p.get('where') or 'cell ' + str(p.get('cell_index', '?'))} "
+                f"({p.get('kind', 'problem')}): "
                 f"{p.get('message', '')}"
             )
         lines.append("")

@@ -12,7 +12,7 @@ answers requests until its request pipe closes.
 Wire protocol: each message is an 8-byte little-endian length followed by a
 pickle (protocol 5). Grader -> worker (trusted, plain pickle)::
 
-    ("define", [(cell_index, source), ...])
+    ("define", [(cell_index, source), ...], cell_seconds)
     ("call", call_id, name, args, kwargs, cpu_seconds)
 
 Worker -> grader (untrusted: decoded with :func:`robolab.grading.codec.loads`)::
@@ -122,32 +122,18 @@ def describe_exception(exc: BaseException) -> dict:
     return {"type": kind.__qualname__, "bases": bases, "message": _text(exc), "traceback": text}
 
 
-def define(namespace: dict, cells: list[tuple[int, str]]) -> list[tuple[int, str, str]]:
-    """Execute the kept definitions statement by statement; return the errors.
+def define(
+    namespace: dict, cells: list[tuple[int, str]], cell_seconds: float | None = None
+) -> list[tuple[int, str, str]]:
+    """Run the notebook's needed cells whole, in order, as a kernel would; return the failures.
 
-    One failing statement (an import of a missing module, a decorator that
-    raises) is recorded and the statements after it still run.
+    See :func:`robolab.grading.kernel.run_cells`: a cell that raises, does not
+    compile or runs past ``cell_seconds`` is recorded and the next cell still runs.
     """
-    import ast
-    import linecache
+    from robolab.grading import kernel
 
-    problems = []
-    for cell_index, source in cells:
-        filename = f"<cell {cell_index}>"
-        linecache.cache[filename] = (len(source), None, source.splitlines(True), filename)
-        try:
-            tree = ast.parse(source, filename)
-        except SyntaxError as exc:
-            problems.append((cell_index, "syntax", f"{exc.msg} (line {exc.lineno})"))
-            continue
-        for node in tree.body:
-            code = compile(ast.Module(body=[node], type_ignores=[]), filename, "exec")
-            try:
-                exec(code, namespace)  # noqa: S102 - running student code is this process's job
-            except BaseException as exc:  # noqa: BLE001 - SystemExit at definition time too
-                info = describe_exception(exc)
-                problems.append((cell_index, "error", f"{info['type']}: {info['message']}"))
-    return problems
+    kernel.new_namespace(SUBMISSION_MODULE, namespace)
+    return kernel.run_cells(namespace, cells, cell_seconds or kernel.CELL_SECONDS, kernel.flush)
 
 
 def function_names(namespace: dict) -> list[str]:
@@ -226,7 +212,7 @@ def serve(request_fd: int, response_fd: int) -> int:
             return 0
         request = pickle.loads(frame)  # noqa: S301 - from the grader, the trusted side
         if request[0] == "define":
-            problems = define(namespace, request[1])
+            problems = define(namespace, *request[1:])
             for stream in (sys.stdout, sys.stderr):
                 stream.flush()
             _send(response_fd, ("defined", function_names(namespace), problems))

@@ -1,0 +1,213 @@
+"""Run a notebook's needed cells the way a Jupyter kernel would, without a kernel.
+
+:func:`run_cells` executes each cell's Python (already transformed by
+:func:`robolab.grading.notebook.to_python`) whole, in order, in one namespace:
+a cell that raises stops there, as in Jupyter, and the next cell still runs.
+``from __future__`` imports carry over to later cells (IPython compiles with
+the flags of earlier cells). Each cell gets a load time limit, enforced with
+``SIGALRM`` by raising :class:`LoadTimeout`, a ``BaseException`` that a
+student's ``except Exception`` does not swallow (the grader's own wall limit
+stays the hard one).
+
+Transformed cells call ``get_ipython()``: :class:`Shell` answers the calls a
+kernel would, for grading. ``%time STATEMENT`` runs the statement in the
+namespace (its bindings persist, as in IPython); ``%timeit STATEMENT`` runs it
+once in a throwaway local scope (IPython's timing function keeps nothing
+either); every other line magic (``%matplotlib``, ``%load_ext``, ``%pip``),
+``!cmd`` and cell magic does nothing, and ``x = !cmd`` gives an empty list.
+
+Used by the grading worker (isolated) and by ``robolab check`` (in the
+student's own process), so both load a notebook identically.
+"""
+
+from __future__ import annotations
+
+import __future__
+import builtins
+import functools
+import linecache
+import operator
+import signal
+import sys
+import traceback
+from collections.abc import Callable
+
+__all__ = ["LoadTimeout", "Shell", "load_limit", "new_namespace", "run_cells"]
+
+#: Seconds one needed cell may run while the notebook loads.
+CELL_SECONDS = 20.0
+
+_FUTURE_FLAGS = functools.reduce(
+    operator.or_, (getattr(__future__, f).compiler_flag for f in __future__.all_feature_names)
+)
+
+
+def load_limit(wall_seconds: float, cpu_seconds: float) -> float:
+    """Seconds each needed cell may run, under a worker's per-request limits.
+
+    Half of each limit (at most :data:`CELL_SECONDS`), so a slow cell is
+    stopped and named before the grader's hard limit ends the whole load.
+    """
+    return min(CELL_SECONDS, wall_seconds / 2, cpu_seconds / 2)
+
+
+class LoadTimeout(BaseException):
+    """A cell ran past its load time limit (not an Exception: ``except Exception`` passes it)."""
+
+
+class Shell:
+    """What ``get_ipython()`` returns to a cell run for grading (see the module docstring)."""
+
+    def __init__(self, namespace: dict) -> None:
+        self.user_ns = namespace
+
+    def run_line_magic(self, magic_name: str, line: str, _stack_depth: int = 1) -> object:
+        if magic_name == "time":
+            return self._run(line, self.user_ns)
+        if magic_name == "timeit":
+            self._run(line, {})  # once, its names local to the timing run
+        return None
+
+    def run_cell_magic(self, magic_name: str, line: str, cell: str) -> None:
+        return None  # Python-running cell magics were unwrapped when the notebook was read
+
+    def system(self, cmd: str) -> None:
+        return None
+
+    def getoutput(self, cmd: str, split: bool = True, depth: int = 0) -> list:
+        return []
+
+    def _run(self, statement: str, local: dict) -> object:
+        try:
+            code = compile(statement, "<magic>", "eval")
+        except SyntaxError:
+            exec(compile(statement, "<magic>", "exec"), self.user_ns, local)  # noqa: S102
+            return None
+        return eval(code, self.user_ns, local)  # noqa: S307 - the student's own statement
+
+
+def _display(*objects: object, **options: object) -> None:
+    """``display()`` of a kernel: rich output goes nowhere when grading."""
+    return None
+
+
+def new_namespace(module_name: str, namespace: dict | None = None) -> dict:
+    """A module namespace whose builtins include ``get_ipython`` and ``display``, as in a kernel.
+
+    They live in the namespace's own ``__builtins__``, so they are no
+    definitions of the notebook.
+    """
+    namespace = {} if namespace is None else namespace
+    namespace.setdefault("__name__", module_name)
+    shell = Shell(namespace)
+    namespace["__builtins__"] = dict(
+        vars(builtins), get_ipython=lambda: shell, display=_display
+    )
+    return namespace
+
+
+def run_cells(
+    namespace: dict,
+    cells: list[tuple[int, str]],
+    cell_seconds: float = CELL_SECONDS,
+    on_done: Callable[[], None] | None = None,
+) -> list[tuple[int, str, str]]:
+    """Run each cell whole, in order; return ``(cell_index, kind, message)`` of those that failed.
+
+    ``kind`` is ``"syntax"``, ``"error"`` or ``"timeout"``. ``on_done`` runs
+    after each cell (the worker flushes the student's output there).
+    """
+    problems = []
+    flags = 0
+    for cell_index, source in cells:
+        filename = f"<cell {cell_index + 1}>"
+        linecache.cache[filename] = (len(source), None, source.splitlines(True), filename)
+        try:
+            code = compile(source, filename, "exec", flags=flags, dont_inherit=True)
+        except (SyntaxError, ValueError) as exc:
+            line = f" (line {exc.lineno})" if getattr(exc, "lineno", None) else ""
+            problems.append((cell_index, "syntax", f"it does not run: {_msg(exc)}{line}"))
+            continue
+        flags |= code.co_flags & _FUTURE_FLAGS
+        try:
+            with _time_limit(cell_seconds):
+                exec(code, namespace)  # noqa: S102 - running the student's cells is the point
+        except LoadTimeout:
+            problems.append(
+                (
+                    cell_index,
+                    "timeout",
+                    f"it ran longer than {cell_seconds:g} s while your notebook was loaded, "
+                    "so it was stopped there; it defines a name your graded functions need, "
+                    "so move slow demos to a cell of their own",
+                )
+            )
+        except BaseException as exc:  # noqa: BLE001 - SystemExit in a cell too
+            line = _line_in(exc, filename)
+            problems.append(
+                (cell_index, "error", f"running it raised {type(exc).__name__}: {_msg(exc)}{line}")
+            )
+        finally:
+            if on_done is not None:
+                on_done()
+    return problems
+
+
+class _time_limit:
+    """SIGALRM every ``seconds`` (then every 0.5 s, in case the student catches it)."""
+
+    def __init__(self, seconds: float) -> None:
+        self.seconds = seconds
+        self.armed = False
+        self.previous = None
+
+    def _fire(self, signum: int, frame: object) -> None:
+        if self.armed:
+            raise LoadTimeout
+
+    def __enter__(self) -> _time_limit:
+        try:
+            self.previous = signal.signal(signal.SIGALRM, self._fire)
+        except ValueError:  # not the main thread: no limit but the grader's
+            return self
+        self.armed = True
+        signal.setitimer(signal.ITIMER_REAL, self.seconds, 0.5)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if not self.armed:
+            return
+        self.armed = False
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, self.previous or signal.SIG_DFL)
+
+
+def _msg(exc: BaseException) -> str:
+    try:
+        text = str(exc)
+    except BaseException:  # noqa: BLE001 - a student's __str__ may raise anything
+        text = "<no message>"
+    if isinstance(exc, SyntaxError):
+        text = exc.msg or text
+    return text if len(text) <= 2000 else text[:2000] + " [...]"
+
+
+def _line_in(exc: BaseException, filename: str) -> str:
+    """`` (line N)`` of the deepest frame of the cell in the traceback."""
+    line = None
+    try:
+        for frame in traceback.extract_tb(exc.__traceback__):
+            if frame.filename == filename:
+                line = frame.lineno
+    except BaseException:  # noqa: BLE001
+        return ""
+    return f" (line {line})" if line else ""
+
+
+def flush() -> None:
+    """Flush stdout and stderr (between cells, so the grader sees output in order)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except Exception:  # noqa: BLE001 - the student may have closed or replaced it
+            pass
