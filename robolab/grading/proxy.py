@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import robolab
-from robolab.grading import codec, sandbox
+from robolab.grading import codec, observe, sandbox
 from robolab.grading.kernel import load_limit
 from robolab.grading.notebook import CellProblem, LoadedNotebook, load_notebook
 from robolab.grading.worker import HEADER
@@ -611,7 +611,8 @@ class SubmissionProxy:
     def _expect(self, worker: _Worker, message: Any, kind: str, call_id: int | None = None) -> Any:
         ok = isinstance(message, tuple) and message and message[0] == kind
         if ok and call_id is not None:
-            ok = len(message) == 3 and message[1] == call_id
+            ok = len(message) in ((3, 4) if kind in ("ok", "error") else (3,))
+            ok = ok and message[1] == call_id
         if kind == "defined":
             ok = (
                 ok
@@ -677,14 +678,30 @@ class SubmissionProxy:
             raise type(exc)(
                 f"{name}(): {exc.message}", kind=exc.kind, student_traceback=exc.student_traceback
             ) from None
-        return self._answer(worker, name, call_id, message)
+        return self._answer(worker, name, call_id, message, args, kwargs)
 
-    def _answer(self, worker: _Worker, name: str, call_id: int, message: Any) -> Any:
+    def _answer(
+        self,
+        worker: _Worker,
+        name: str,
+        call_id: int,
+        message: Any,
+        args: tuple = (),
+        kwargs: dict | None = None,
+    ) -> Any:
         head = message[0] if isinstance(message, tuple) and message else None
         if head == "ok":
-            return self._expect(worker, message, "ok", call_id)[2]
+            message = self._expect(worker, message, "ok", call_id)
+            if len(message) < 4:
+                return message[2]
+            # What the call did to its arguments and how its result shares memory with
+            # them, replayed on the caller's objects (robolab.grading.observe).
+            return observe.replay(message[2], message[3], args, kwargs or {})
         if head == "error":
-            info = self._expect(worker, message, "error", call_id)[2]
+            message = self._expect(worker, message, "error", call_id)
+            info = message[2]
+            if len(message) == 4:  # what it changed before raising
+                observe.replay(None, message[3], args, kwargs or {})
             if not (isinstance(info, dict) and isinstance(info.get("bases"), list)):
                 self._discard()
                 raise StudentCodeError("the worker sent a malformed error", kind="protocol")

@@ -20,8 +20,8 @@ Worker -> grader (untrusted: decoded with :func:`robolab.grading.codec.loads`)::
     ("failed", message)                       # the sandbox could not be applied
     ("ready", sandbox_report_dict)
     ("defined", [function names], [(cell_index, "error", message)])
-    ("ok", call_id, value)
-    ("error", call_id, {"type", "bases", "message", "traceback"})
+    ("ok", call_id, value, observation)      # observation: see robolab.grading.observe
+    ("error", call_id, {"type", "bases", "message", "traceback"}, observation)
     ("missing", call_id, name)
     ("exit", call_id, description)            # SystemExit / KeyboardInterrupt
 
@@ -153,6 +153,16 @@ def _dumps(value: object) -> bytes:
     return dumps(value)
 
 
+def _watch(args: tuple, kwargs: dict):
+    """A snapshot of the call's argument arrays (see :mod:`robolab.grading.observe`), or None."""
+    from robolab.grading.observe import Watch  # imports numpy: only after the sandbox is applied
+
+    try:
+        return Watch(args, kwargs)
+    except Exception:  # noqa: BLE001 - an argument numpy cannot copy: nothing is observed
+        return None
+
+
 def _limit_cpu(cpu_seconds: float) -> None:
     # Cooperative per-call CPU budget; the grader measures and enforces it too.
     import resource
@@ -175,20 +185,27 @@ def _call(
     kwargs: dict,
     cpu_seconds: float,
 ) -> None:
+    watch = None
     function = namespace.get(name)
     if name.startswith("__") or function is None or not callable(function):
         _send(response_fd, ("missing", call_id, name))
         return
     try:
         _limit_cpu(cpu_seconds)
+        watch = _watch(args, kwargs)
         value = function(*args, **kwargs)
-        payload = _dumps(("ok", call_id, value))
+        observation = watch.report(value) if watch is not None else None
+        payload = _dumps(("ok", call_id, value, observation))
     except (SystemExit, KeyboardInterrupt, GeneratorExit) as exc:
         code = getattr(exc, "code", None)
         _send(response_fd, ("exit", call_id, f"{type(exc).__name__}({_text(code)})"))
         return
     except BaseException as exc:  # noqa: BLE001 - any student failure is reported, not fatal
-        _send(response_fd, ("error", call_id, describe_exception(exc)))
+        try:  # what it changed before raising, as a caller in-process would see it
+            observation = watch.report(None) if watch is not None else None
+        except BaseException:  # noqa: BLE001 - `watch` unbound, or the snapshot itself failed
+            observation = None
+        _send(response_fd, ("error", call_id, describe_exception(exc), observation))
         return
     finally:
         for stream in (sys.stdout, sys.stderr):
