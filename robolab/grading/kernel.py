@@ -3,8 +3,9 @@
 :func:`run_cells` executes each cell's Python (already transformed by
 :func:`robolab.grading.notebook.to_python`) whole, in order, in one namespace:
 a cell that raises stops there, as in Jupyter, and the next cell still runs.
-``from __future__`` imports carry over to later cells (IPython compiles with
-the flags of earlier cells). Each cell gets a load time limit, enforced with
+Like IPython's ``run_ast_nodes``, each top-level statement is compiled on
+its own, with the ``from __future__`` flags of the statements before it (in
+this cell and earlier ones), so a future import need not open its cell. Each cell gets a load time limit, enforced with
 ``SIGALRM`` by raising :class:`LoadTimeout`, a ``BaseException`` that a
 student's ``except Exception`` does not swallow (the grader's own wall limit
 stays the hard one).
@@ -23,6 +24,7 @@ student's own process), so both load a notebook identically.
 from __future__ import annotations
 
 import __future__
+import ast
 import builtins
 import functools
 import linecache
@@ -123,15 +125,25 @@ def run_cells(
         filename = f"<cell {cell_index + 1}>"
         linecache.cache[filename] = (len(source), None, source.splitlines(True), filename)
         try:
-            code = compile(source, filename, "exec", flags=flags, dont_inherit=True)
+            tree = compile(source, filename, "exec", flags=flags | ast.PyCF_ONLY_AST, dont_inherit=True)
         except (SyntaxError, ValueError) as exc:
             line = f" (line {exc.lineno})" if getattr(exc, "lineno", None) else ""
             problems.append((cell_index, "syntax", f"it does not run: {_msg(exc)}{line}"))
             continue
-        flags |= code.co_flags & _FUTURE_FLAGS
         try:
             with _time_limit(cell_seconds):
-                exec(code, namespace)  # noqa: S102 - running the student's cells is the point
+                # Statement by statement, as IPython's run_ast_nodes: a `from __future__`
+                # import anywhere in a cell holds from there on, in later cells too.
+                for node in tree.body:
+                    code = compile(
+                        ast.Module(body=[node], type_ignores=[]),
+                        filename,
+                        "exec",
+                        flags=flags,
+                        dont_inherit=True,
+                    )
+                    flags |= code.co_flags & _FUTURE_FLAGS
+                    exec(code, namespace)  # noqa: S102 - running the student's cells is the point
         except LoadTimeout:
             problems.append(
                 (

@@ -223,6 +223,8 @@ class _Cell:
     #: function name -> the globals it assigns (``global X; X = ...``) when called
     global_writes: dict[str, set[str]] = field(default_factory=dict)
     star: bool = False
+    #: its ``from __future__`` imports (they change how every later cell compiles)
+    future: list[str] = field(default_factory=list)
     error: SyntaxError | None = None
 
 
@@ -249,8 +251,10 @@ def _analyse(index: int, python: str | None) -> _Cell:
         cell.reads_now |= now - cell.binds
         cell.reads_later |= later
         cell.binds |= binds
-        if isinstance(node, (ast.ImportFrom,)) and any(a.name == "*" for a in node.names):
+        if isinstance(node, ast.ImportFrom) and any(a.name == "*" for a in node.names):
             cell.star = True
+        if isinstance(node, ast.ImportFrom) and node.module == "__future__":
+            cell.future.append(ast.unparse(node))
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
             cell.functions.append(node.name)
             if binds - {node.name}:
@@ -553,7 +557,15 @@ def load_notebook(
         for cell in cells
         if cell.error is not None and set(_DEF_LINE.findall(raw[cell.index])) & wanted
     ]
-    kept = [(cell.index, cell.python) for cell in needed]
+    # A skipped cell's `from __future__` imports still hold in the cells after it.
+    chosen = {cell.index for cell in needed}
+    kept = [
+        (cell.index, cell.python)
+        if cell.index in chosen
+        else (cell.index, "\n".join(cell.future) + "\n")
+        for cell in cells
+        if cell.index in chosen or (cell.future and needed and cell.index < needed[-1].index)
+    ]
     return LoadedNotebook(
         path=path,
         lab=meta_lab,

@@ -181,3 +181,19 @@ def test_the_sleeping_scratch_cell_is_skipped(graded):
             f"{variant.name} took {graded[variant.name].seconds:.0f} s to grade"
         )
 
+
+
+@pytest.mark.parametrize("name", list(BY_NAME))
+def test_robolab_check_passes_where_the_visible_checks_pass_in_jupyter(
+    jupyter, tmp_path, capsys, name
+):
+    from robolab.grading.commands import check
+
+    ok, details = jupyter[name]
+    assert ok, details  # the visible-check cells ran in Jupyter without an error
+    path = tmp_path / f"{name}.ipynb"
+    nbformat.write(BY_NAME[name].notebook(), str(path))
+    code = check(path)
+    out = capsys.readouterr().out
+    assert code == 0, out[-2000:]
+    assert "note:" not in out, out[-2000:]
