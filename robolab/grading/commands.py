@@ -100,13 +100,13 @@ def check(notebook: Path) -> int:
     except ModuleNotFoundError:
         return _error(f"lab {loaded.lab!r} has no visible checks")
     # The same cells, run the same way, as `robolab grade` runs them in its worker.
-    from robolab.grading.kernel import load_limit, new_namespace, run_cells
+    from robolab.grading.kernel import load_budget, new_namespace, run_cells
     from robolab.grading.proxy import Limits
 
     namespace = new_namespace("__notebook__")
-    limit = load_limit(Limits().wall_seconds, Limits().cpu_seconds)
+    budget = load_budget(Limits().wall_seconds, Limits().cpu_seconds)
     problems = list(loaded.problems)
-    problems += [loaded.problem(*failed) for failed in run_cells(namespace, loaded.cells, limit)]
+    problems += [loaded.problem(*failed) for failed in run_cells(namespace, loaded.cells, *budget)]
     for p in sorted(problems, key=lambda p: p.cell_index):
         print(f"note: {p}")
     visible = sorted(

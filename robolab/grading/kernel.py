@@ -5,10 +5,10 @@
 a cell that raises stops there, as in Jupyter, and the next cell still runs.
 Like IPython's ``run_ast_nodes``, each top-level statement is compiled on
 its own, with the ``from __future__`` flags of the statements before it (in
-this cell and earlier ones), so a future import need not open its cell. Each cell gets a load time limit, enforced with
-``SIGALRM`` by raising :class:`LoadTimeout`, a ``BaseException`` that a
-student's ``except Exception`` does not swallow (the grader's own wall limit
-stays the hard one).
+this cell and earlier ones), so a future import need not open its cell.
+Each cell gets a load time limit, enforced with ``SIGALRM`` by raising
+:class:`LoadTimeout`, a ``BaseException`` that a student's ``except Exception``
+does not swallow (the grader's own wall limit stays the hard one).
 
 Transformed cells call ``get_ipython()``: :class:`Shell` answers the calls a
 kernel would, for grading. ``%time STATEMENT`` runs the statement in the
@@ -22,8 +22,8 @@ student's own process), so both load a notebook identically.
 """
 
 from __future__ import annotations
-
 import __future__
+
 import ast
 import builtins
 import functools
@@ -31,30 +31,32 @@ import linecache
 import operator
 import signal
 import sys
+import time
 import traceback
 from collections.abc import Callable
 
-__all__ = ["LoadTimeout", "Shell", "load_limit", "new_namespace", "run_cells"]
-
-#: Seconds one needed cell may run while the notebook loads.
-CELL_SECONDS = 20.0
+__all__ = ["LoadTimeout", "Shell", "load_budget", "new_namespace", "run_cells"]
 
 _FUTURE_FLAGS = functools.reduce(
     operator.or_, (getattr(__future__, f).compiler_flag for f in __future__.all_feature_names)
 )
 
 
-def load_limit(wall_seconds: float, cpu_seconds: float) -> float:
-    """Seconds each needed cell may run, under a worker's per-request limits.
+def load_budget(wall_seconds: float, cpu_seconds: float) -> tuple[float, float]:
+    """Wall and CPU seconds the needed cells may take together, under a worker's request limits.
 
-    Half of each limit (at most :data:`CELL_SECONDS`), so a slow cell is
-    stopped and named before the grader's hard limit ends the whole load.
+    A little less than the limits (a fifth, at most one second), so the cell
+    that uses them up is stopped and named before the grader's own hard limit
+    ends the whole load.
     """
-    return min(CELL_SECONDS, wall_seconds / 2, cpu_seconds / 2)
+    return (
+        wall_seconds - min(1.0, wall_seconds / 5),
+        cpu_seconds - min(1.0, cpu_seconds / 5),
+    )
 
 
 class LoadTimeout(BaseException):
-    """A cell ran past its load time limit (not an Exception: ``except Exception`` passes it)."""
+    """A cell ran past the load budget (not an Exception: ``except Exception`` passes it)."""
 
 
 class Shell:
@@ -102,36 +104,47 @@ def new_namespace(module_name: str, namespace: dict | None = None) -> dict:
     namespace = {} if namespace is None else namespace
     namespace.setdefault("__name__", module_name)
     shell = Shell(namespace)
-    namespace["__builtins__"] = dict(
-        vars(builtins), get_ipython=lambda: shell, display=_display
-    )
+    namespace["__builtins__"] = dict(vars(builtins), get_ipython=lambda: shell, display=_display)
     return namespace
 
 
 def run_cells(
     namespace: dict,
     cells: list[tuple[int, str]],
-    cell_seconds: float = CELL_SECONDS,
+    wall_seconds: float,
+    cpu_seconds: float,
     on_done: Callable[[], None] | None = None,
 ) -> list[tuple[int, str, str]]:
     """Run each cell whole, in order; return ``(cell_index, kind, message)`` of those that failed.
 
-    ``kind`` is ``"syntax"``, ``"error"`` or ``"timeout"``. ``on_done`` runs
-    after each cell (the worker flushes the student's output there).
+    ``kind`` is ``"syntax"``, ``"error"`` or ``"timeout"``. The cells share a
+    budget of ``wall_seconds`` and ``cpu_seconds`` (see :func:`load_budget`):
+    the cell that exhausts it is stopped, and the cells after it are not run.
+    ``on_done`` runs after each cell (the worker flushes the student's output there).
     """
     problems = []
     flags = 0
+    wall_end = time.monotonic() + wall_seconds
+    cpu_end = time.process_time() + cpu_seconds
+    stopped: int | None = None
     for cell_index, source in cells:
+        if stopped is not None:
+            problems.append(
+                (cell_index, "timeout", f"not run: cell {stopped + 1} used up {_SPENT}")
+            )
+            continue
         filename = f"<cell {cell_index + 1}>"
         linecache.cache[filename] = (len(source), None, source.splitlines(True), filename)
         try:
-            tree = compile(source, filename, "exec", flags=flags | ast.PyCF_ONLY_AST, dont_inherit=True)
+            tree = compile(
+                source, filename, "exec", flags=flags | ast.PyCF_ONLY_AST, dont_inherit=True
+            )
         except (SyntaxError, ValueError) as exc:
             line = f" (line {exc.lineno})" if getattr(exc, "lineno", None) else ""
             problems.append((cell_index, "syntax", f"it does not run: {_msg(exc)}{line}"))
             continue
         try:
-            with _time_limit(cell_seconds):
+            with _time_limit(wall_end - time.monotonic(), cpu_end - time.process_time()):
                 # Statement by statement, as IPython's run_ast_nodes: a `from __future__`
                 # import anywhere in a cell holds from there on, in later cells too.
                 for node in tree.body:
@@ -144,14 +157,17 @@ def run_cells(
                     )
                     flags |= code.co_flags & _FUTURE_FLAGS
                     exec(code, namespace)  # noqa: S102 - running the student's cells is the point
-        except LoadTimeout:
+        except LoadTimeout as exc:
+            stopped = cell_index
+            what = (
+                f"{cpu_seconds:g} s of CPU time" if exc.args == ("cpu",) else f"{wall_seconds:g} s"
+            )
             problems.append(
                 (
                     cell_index,
                     "timeout",
-                    f"it ran longer than {cell_seconds:g} s while your notebook was loaded, "
-                    "so it was stopped there; it defines a name your graded functions need, "
-                    "so move slow demos to a cell of their own",
+                    f"it was stopped after running longer than {_SPENT} ({what}); it defines "
+                    "a name your graded functions need, so move slow demos to a cell of their own",
                 )
             )
         except BaseException as exc:  # noqa: BLE001 - SystemExit in a cell too
@@ -165,33 +181,47 @@ def run_cells(
     return problems
 
 
+_SPENT = "the time allowed to load your notebook"
+
+
 class _time_limit:
-    """SIGALRM every ``seconds`` (then every 0.5 s, in case the student catches it)."""
+    """``LoadTimeout`` after ``wall`` seconds or ``cpu`` CPU seconds (again every 0.5 s after)."""
 
-    def __init__(self, seconds: float) -> None:
-        self.seconds = seconds
+    _TIMERS = (
+        (signal.ITIMER_REAL, signal.SIGALRM, "wall"),
+        (signal.ITIMER_PROF, signal.SIGPROF, "cpu"),
+    )
+
+    def __init__(self, wall: float, cpu: float) -> None:
+        self.limits = (max(wall, 0.01), max(cpu, 0.01))
         self.armed = False
-        self.previous = None
+        self.previous: list = []
 
-    def _fire(self, signum: int, frame: object) -> None:
-        if self.armed:
-            raise LoadTimeout
+    def _handler(self, which: str):
+        def fire(signum: int, frame: object) -> None:
+            if self.armed:
+                raise LoadTimeout(which)
+
+        return fire
 
     def __enter__(self) -> _time_limit:
         try:
-            self.previous = signal.signal(signal.SIGALRM, self._fire)
+            for _, signum, which in self._TIMERS:
+                self.previous.append(signal.signal(signum, self._handler(which)))
         except ValueError:  # not the main thread: no limit but the grader's
             return self
         self.armed = True
-        signal.setitimer(signal.ITIMER_REAL, self.seconds, 0.5)
+        for (timer, _, _), seconds in zip(self._TIMERS, self.limits, strict=True):
+            signal.setitimer(timer, seconds, 0.5)
         return self
 
     def __exit__(self, *exc: object) -> None:
         if not self.armed:
             return
         self.armed = False
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, self.previous or signal.SIG_DFL)
+        for (timer, signum, _), previous in zip(self._TIMERS, self.previous, strict=True):
+            signal.setitimer(timer, 0)
+            signal.signal(signum, previous or signal.SIG_DFL)
 
 
 def _msg(exc: BaseException) -> str:

@@ -318,7 +318,9 @@ def _mutated(node: ast.stmt) -> set[str]:
     roots = set()
     for target in targets:
         for sub in ast.walk(target):
-            if isinstance(sub, (ast.Subscript, ast.Attribute)) and isinstance(sub.ctx, (ast.Store, ast.Del)):
+            if isinstance(sub, (ast.Subscript, ast.Attribute)) and isinstance(
+                sub.ctx, (ast.Store, ast.Del)
+            ):
                 base = sub.value
                 while isinstance(base, (ast.Subscript, ast.Attribute)):
                     base = base.value
@@ -416,9 +418,9 @@ def lab_exercises(lab: str | None) -> tuple[str, ...]:
         try:
             nb = json.loads(stub.read_text(encoding="utf-8"))
             for cell in nb.get("cells", []):
-                if cell.get("cell_type") == "code" and EXERCISE_TAG in cell.get(
-                    "metadata", {}
-                ).get("tags", []):
+                if cell.get("cell_type") == "code" and EXERCISE_TAG in cell.get("metadata", {}).get(
+                    "tags", []
+                ):
                     names += [
                         n.name
                         for n in ast.parse(_text(cell.get("source", ""))).body
@@ -542,9 +544,7 @@ def load_notebook(
                 dict.fromkeys(
                     n
                     for cell in cells
-                    for n in (
-                        _DEF_LINE.findall(raw[cell.index]) if cell.error else cell.functions
-                    )
+                    for n in (_DEF_LINE.findall(raw[cell.index]) if cell.error else cell.functions)
                 )
             )
     else:

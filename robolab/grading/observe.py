@@ -50,7 +50,7 @@ Path = tuple  # of ("i", int) | ("k", str | int) | ("a", str)
 
 
 def arrays_in(value: Any, path: Path = (), depth: int = 0) -> Iterator[tuple[Path, np.ndarray]]:
-    """Every numpy array in ``value`` (through tuples, lists, dicts and dataclasses), with its path."""
+    """Every numpy array in ``value`` (through tuples, lists, dicts, dataclasses), with its path."""
     if isinstance(value, np.ndarray):
         yield path, value
     elif depth >= MAX_DEPTH:
@@ -87,10 +87,7 @@ class Watch:
     """Snapshot of a call's argument arrays, taken in the worker before the call."""
 
     def __init__(self, args: tuple, kwargs: dict) -> None:
-        self.inputs = [
-            (path, a, a.copy())
-            for path, a in _first(arrays_in((args, kwargs)))
-        ]
+        self.inputs = [(path, a, a.copy()) for path, a in _first(arrays_in((args, kwargs)))]
 
     def report(self, result: Any) -> dict:
         """The observation of the call that returned ``result`` (plain data)."""
@@ -189,7 +186,7 @@ def _put(root: Any, path: tuple, new: Any) -> Any:
     """``root`` with the value at ``path`` replaced (tuples rebuilt, the rest changed in place)."""
     if not path:
         return new
-    (kind, key), rest = path[0], path[1:]
+    (_, key), rest = path[0], path[1:]
     child = _get(root, (path[0],))
     replaced = _put(child, rest, new)
     if isinstance(root, tuple):
@@ -270,7 +267,12 @@ def _replay_alias(result: Any, inputs: tuple, entry: Any) -> Any:
 
 
 def _view(
-    source: np.ndarray, decoded: np.ndarray, offset: Any, shape: Any, strides: Any, source_strides: Any
+    source: np.ndarray,
+    decoded: np.ndarray,
+    offset: Any,
+    shape: Any,
+    strides: Any,
+    source_strides: Any,
 ) -> np.ndarray | None:
     """``decoded`` rebuilt as a view of the caller's ``source``, or None when that is unsafe."""
     ints = (offset, *shape, *strides, *source_strides)

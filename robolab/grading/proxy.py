@@ -39,7 +39,7 @@ from typing import Any
 
 import robolab
 from robolab.grading import codec, observe, sandbox
-from robolab.grading.kernel import load_limit
+from robolab.grading.kernel import load_budget
 from robolab.grading.notebook import CellProblem, LoadedNotebook, load_notebook
 from robolab.grading.worker import HEADER
 
@@ -581,8 +581,8 @@ class SubmissionProxy:
             _warn_if_weak(worker.report)
         try:
             deadline = time.monotonic() + self._limits.wall_seconds
-            cell_seconds = load_limit(self._limits.wall_seconds, self._limits.cpu_seconds)
-            worker.send(("define", self._notebook.cells, cell_seconds), deadline)
+            budget = load_budget(self._limits.wall_seconds, self._limits.cpu_seconds)
+            worker.send(("define", self._notebook.cells, *budget), deadline)
             message = self._expect(
                 worker, worker.receive(deadline, self._limits.cpu_seconds), "defined"
             )

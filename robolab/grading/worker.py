@@ -12,7 +12,7 @@ answers requests until its request pipe closes.
 Wire protocol: each message is an 8-byte little-endian length followed by a
 pickle (protocol 5). Grader -> worker (trusted, plain pickle)::
 
-    ("define", [(cell_index, source), ...], cell_seconds)
+    ("define", [(cell_index, source), ...], wall_seconds, cpu_seconds)
     ("call", call_id, name, args, kwargs, cpu_seconds)
 
 Worker -> grader (untrusted: decoded with :func:`robolab.grading.codec.loads`)::
@@ -123,17 +123,18 @@ def describe_exception(exc: BaseException) -> dict:
 
 
 def define(
-    namespace: dict, cells: list[tuple[int, str]], cell_seconds: float | None = None
+    namespace: dict, cells: list[tuple[int, str]], wall_seconds: float, cpu_seconds: float
 ) -> list[tuple[int, str, str]]:
     """Run the notebook's needed cells whole, in order, as a kernel would; return the failures.
 
-    See :func:`robolab.grading.kernel.run_cells`: a cell that raises, does not
-    compile or runs past ``cell_seconds`` is recorded and the next cell still runs.
+    See :func:`robolab.grading.kernel.run_cells`: a cell that raises or does
+    not compile is recorded and the next cell still runs; the cell that uses up
+    the load budget (``wall_seconds``, ``cpu_seconds``) is stopped and named.
     """
     from robolab.grading import kernel
 
     kernel.new_namespace(SUBMISSION_MODULE, namespace)
-    return kernel.run_cells(namespace, cells, cell_seconds or kernel.CELL_SECONDS, kernel.flush)
+    return kernel.run_cells(namespace, cells, wall_seconds, cpu_seconds, kernel.flush)
 
 
 def function_names(namespace: dict) -> list[str]:

@@ -131,9 +131,7 @@ def wrap_exercises(
 
 
 def prefix_exercises(cells: list[Cell], exercises: dict[int, list[str]], prefix: str) -> list[Cell]:
-    return [
-        Cell(prefix + c.source, c.tags) if p in exercises else c for p, c in enumerate(cells)
-    ]
+    return [Cell(prefix + c.source, c.tags) if p in exercises else c for p, c in enumerate(cells)]
 
 
 def insert_after_first_exercise(
@@ -198,7 +196,9 @@ def _plain(cells, ex):
 @style("line-magics")
 def _line_magics(cells, ex):
     magics = "%matplotlib inline\n%config InlineBackend.figure_format = 'png'\n"
-    return [Cell(magics + cells[0].source)] + prefix_exercises(cells, ex, "%load_ext autoreload\n")[1:]
+    return [Cell(magics + cells[0].source)] + prefix_exercises(cells, ex, "%load_ext autoreload\n")[
+        1:
+    ]
 
 
 @style("shell-lines")
@@ -286,8 +286,12 @@ def _inserted_value(cells, ex):
 @style("star-import")
 def _star_import(cells, ex):
     def star(source: str) -> str:
-        source = re.sub(r"^from robolab\.(\w+) import .*$", r"from robolab.\1 import *", source,
-                        flags=re.MULTILINE)
+        source = re.sub(
+            r"^from robolab\.(\w+) import .*$",
+            r"from robolab.\1 import *",
+            source,
+            flags=re.MULTILINE,
+        )
         return source
 
     return [Cell(star(c.source), c.tags) if p in ex else c for p, c in enumerate(cells)]
@@ -309,7 +313,8 @@ def _class_based(cells, ex):
                 source = _rename(source, name, f"_{name}_impl")
                 source += (
                     f"\n\nclass _{name.title()}Solver:\n    @staticmethod\n"
-                    f"    def solve(*args, **kwargs):\n        return _{name}_impl(*args, **kwargs)\n"
+                    "    def solve(*args, **kwargs):\n"
+                    f"        return _{name}_impl(*args, **kwargs)\n"
                     f"\n\n{name} = _{name.title()}Solver.solve\n"
                 )
             c = Cell(source, c.tags)
@@ -341,7 +346,9 @@ def _future_first(cells, ex):
     ]
     # `Later` is never defined: the annotations only work when the future import,
     # made in the first cell, still holds in the exercise cells (as in IPython).
-    strip = wrap_exercises(strip, ex, "", header="def {name}(*args: Later, **kwargs: Later) -> Later:")
+    strip = wrap_exercises(
+        strip, ex, "", header="def {name}(*args: Later, **kwargs: Later) -> Later:"
+    )
     return [Cell("from __future__ import annotations")] + strip
 
 

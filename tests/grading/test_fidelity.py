@@ -50,7 +50,7 @@ CASES = {
 ]""",
 }
 
-ORACLE = '''\
+ORACLE = """\
 import numpy as _np
 import importlib as _importlib
 _ref = _importlib.import_module("solutions.{lab}")
@@ -74,7 +74,7 @@ np = _np
 for _name, _args in {cases}:
     _same(globals()[_name](*_args), getattr(_ref, _name)(*_args), _name)
 print("FIDELITY OK {name}")
-'''
+"""
 
 
 def test_the_suite_covers_enough_styles_and_labs():
@@ -180,7 +180,6 @@ def test_the_sleeping_scratch_cell_is_skipped(graded):
         assert graded[variant.name].seconds < LONG_SLEEP, (
             f"{variant.name} took {graded[variant.name].seconds:.0f} s to grade"
         )
-
 
 
 @pytest.mark.parametrize("name", list(BY_NAME))

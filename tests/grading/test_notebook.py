@@ -6,7 +6,7 @@ import ast
 
 import pytest
 
-from robolab.grading.kernel import new_namespace, run_cells
+from robolab.grading.kernel import load_budget, new_namespace, run_cells
 from robolab.grading.notebook import (
     NotebookError,
     cell_label,
@@ -32,10 +32,13 @@ CELLS = [
 ]
 
 
+BUDGET = load_budget(60.0, 30.0)
+
+
 def run(nb) -> dict:
     """The namespace of the notebook's needed cells, run as the worker runs them."""
     namespace = new_namespace("submission")
-    problems = run_cells(namespace, nb.cells)
+    problems = run_cells(namespace, nb.cells, *BUDGET)
     assert problems == []
     return namespace
 
@@ -74,7 +77,7 @@ def test_cell_magics_that_run_python_become_their_body(source, runs):
         assert python is None
         return
     namespace = new_namespace("submission")
-    assert run_cells(namespace, [(0, python)]) == []
+    assert run_cells(namespace, [(0, python)], *BUDGET) == []
     assert namespace["f"]() == 1
 
 
@@ -193,20 +196,31 @@ def test_failing_needed_cells_stop_where_jupyter_stops(tmp_path):
     path = write_notebook(
         tmp_path / "sub.ipynb",
         "def f():\n    return 1\nraise ValueError('boom')\ndef g():\n    return 2",
-        "import time\ndef h():\n    return 3\ntime.sleep(30)",
         "def k():\n    return 4",
+        "import time\ndef h():\n    return 3\ntry:\n    time.sleep(30)\nexcept Exception:\n"
+        "    pass\ndef late():\n    return 5",
+        "def m():\n    return 6",
         lab=None,
     )
     nb = load_notebook(path)
     namespace = new_namespace("submission")
-    problems = run_cells(namespace, nb.cells, cell_seconds=0.5)
-    assert [(i, kind) for i, kind, _ in problems] == [(0, "error"), (1, "timeout")]
+    problems = run_cells(namespace, nb.cells, wall_seconds=0.5, cpu_seconds=10.0)
+    assert [(i, kind) for i, kind, _ in problems] == [(0, "error"), (2, "timeout"), (3, "timeout")]
     assert "ValueError: boom (line 3)" in problems[0][2]
-    assert "longer than 0.5 s" in problems[1][2]
-    assert namespace["f"]() == 1 and namespace["h"]() == 3 and namespace["k"]() == 4
-    assert "g" not in namespace
+    assert "time allowed to load your notebook (0.5 s)" in problems[1][2]
+    assert problems[2][2].startswith("not run: cell 3 used up")
+    assert namespace["f"]() == 1 and namespace["k"]() == 4 and namespace["h"]() == 3
+    assert not {"g", "late", "m"} & namespace.keys()
     # The shim builtins are no definitions of the notebook.
     assert "get_ipython" not in namespace and "display" not in namespace
+
+
+def test_cpu_time_is_limited_too():
+    namespace = new_namespace("submission")
+    source = "def f():\n    return 1\nwhile True:\n    pass"
+    problems = run_cells(namespace, [(4, source)], wall_seconds=30.0, cpu_seconds=0.3)
+    assert problems == [(4, "timeout", problems[0][2])]
+    assert "(0.3 s of CPU time)" in problems[0][2] and namespace["f"]() == 1
 
 
 def test_future_imports_carry_over_to_later_cells(tmp_path):

@@ -18,7 +18,7 @@ from robolab.grading.observe import replay
 from robolab.grading.proxy import open_submission
 from tests.grading import TEST_LIMITS, write_notebook
 
-FUNCTIONS = '''\
+FUNCTIONS = """\
 import numpy as np
 
 def scale_in_place(a):
@@ -66,7 +66,7 @@ def mutate_kwarg(a, *, out):
 def fill_then_fail(a):
     a[:] = -1
     raise ValueError("gave up")
-'''
+"""
 
 CASES = [
     ("scale_in_place", lambda: (np.arange(6.0),), {}),
@@ -116,9 +116,7 @@ def _what_a_test_sees(args, kwargs, result) -> dict:
         "inputs": [(p, a.tolist()) for p, a in inputs],
         "outputs": [(p, r.tolist(), r.flags.writeable) for p, r in outputs],
         "is": [(p, q) for p, r in outputs for q, a in inputs if r is a],
-        "shares": [
-            (p, q) for p, r in outputs for q, a in inputs if np.shares_memory(r, a)
-        ],
+        "shares": [(p, q) for p, r in outputs for q, a in inputs if np.shares_memory(r, a)],
         "between": [
             (p, q)
             for i, (p, r) in enumerate(outputs)

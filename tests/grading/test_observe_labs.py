@@ -9,8 +9,9 @@ odometry_mapping have no such test.
 
 Each mutant is the solved notebook with one exercise wrapped: the wrapper
 returns the reference's values but changes its input by one ulp in place, or
-returns views of its input. Graded through the real path, exactly the tests
-that check inputs and aliasing must fail, as they do in-process.
+returns views of its input. Graded through the real path, the tests that
+check inputs and aliasing must fail, as they do in-process, and the tests of
+the other exercises (except those calling the mutated one) still pass.
 """
 
 from __future__ import annotations
@@ -73,6 +74,10 @@ CHECKING_TESTS = {
 }
 
 
+#: Exercises that call a mutated exercise (their tests may fail with it).
+USERS = {"frames": set(), "landmark_pf": {"particle_filter"}, "fastslam": {"fastslam"}}
+
+
 def mutant(lab: str) -> Variant:
     cells, exercises = solved_cells(lab)
     out = []
@@ -105,6 +110,12 @@ def test_modifying_inputs_or_returning_aliases_loses_exactly_those_tests(results
     result = results[lab]
     assert not result.errors and not result.fatal, result.errors
     failed = {t.nodeid.rsplit("::", 1)[-1].split("[")[0] for t in result.tests if not t.passed}
-    assert failed == CHECKING_TESTS[lab], {
+    # Tests of functions that call the mutated one (particle_filter calls move_particles)
+    # may fail too; the tests that check inputs and aliasing must.
+    assert CHECKING_TESTS[lab] <= failed, {
         t.nodeid: t.message[:200] for t in result.tests if not t.passed
     }
+    mutated = set(MUTANTS[lab])
+    assert all(
+        t.passed for t in result.tests if t.exercise not in mutated and t.exercise not in USERS[lab]
+    ), [t.nodeid for t in result.tests if not t.passed]

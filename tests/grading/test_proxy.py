@@ -192,7 +192,8 @@ def test_load_problems_are_recorded_and_the_rest_loads(tmp_path):
     # As in Jupyter, a cell stops at its first error; the next cells still run.
     path = write_notebook(
         tmp_path / "p.ipynb",
-        "import numpy as np\ndef f(x):\n    return x + 1\nimport no_such_module\ndef e():\n    pass",
+        "import numpy as np\ndef f(x):\n    return x + 1\n"
+        "import no_such_module\ndef e():\n    pass",
         "def broken(:\n",
         "@undefined_decorator\ndef g():\n    pass\ndef h():\n    return 2",
         "def k():\n    return 3",
@@ -222,7 +223,7 @@ def test_a_cell_past_the_load_limit_is_stopped_and_named(tmp_path):
     start = time.monotonic()
     with open_submission(path, limits=limits) as sub:
         assert [(p.kind, p.where) for p in sub.problems] == [("timeout", "cell 1, `def f():`")]
-        assert "longer than 1 s" in sub.problems[0].message
+        assert "time allowed to load your notebook" in sub.problems[0].message
         assert sub.f() == 1  # defined before the loop, as in the kernel
         assert "Slow" not in sub.functions
     assert time.monotonic() - start < 8
