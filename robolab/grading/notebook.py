@@ -171,28 +171,32 @@ def to_python(source: str) -> str | None:
     The result may still not parse (the student's syntax error): that is for
     the caller to find.
     """
+    return _python_and_tree(source)[0]
+
+
+def _python_and_tree(source: str) -> tuple[str | None, ast.Module | SyntaxError | None]:
+    """:func:`to_python` and its parse (or the SyntaxError), parsing each text once."""
     try:
-        ast.parse(source)
-        return source
+        return source, ast.parse(source)
     except (SyntaxError, ValueError):  # ValueError: a NUL byte in the source
         pass
     try:
         python = _transformer().transform_cell(source)
     except Exception:  # noqa: BLE001 - IPython could not tokenize it: left for the parser to report
-        return source
-    magic = _cell_magic(python)
-    if magic is None:
-        return python
-    name, body = magic
-    return to_python(body) if name in PYTHON_CELL_MAGICS else None
-
-
-def _cell_magic(python: str) -> tuple[str, str] | None:
-    """``(name, body)`` when transformed source is one ``run_cell_magic`` call."""
+        python = source
     try:
         tree = ast.parse(python)
-    except (SyntaxError, ValueError):
-        return None
+    except (SyntaxError, ValueError) as exc:
+        return python, exc if isinstance(exc, SyntaxError) else SyntaxError(str(exc))
+    magic = _cell_magic(tree)
+    if magic is None:
+        return python, tree
+    name, body = magic
+    return _python_and_tree(body) if name in PYTHON_CELL_MAGICS else (None, None)
+
+
+def _cell_magic(tree: ast.Module) -> tuple[str, str] | None:
+    """``(name, body)`` when transformed source is one ``run_cell_magic`` call."""
     if len(tree.body) != 1 or not isinstance(tree.body[0], ast.Expr):
         return None
     call = tree.body[0].value
@@ -228,20 +232,19 @@ class _Cell:
     error: SyntaxError | None = None
 
 
-def _analyse(index: int, python: str | None) -> _Cell:
+def _analyse(index: int, source: str) -> _Cell:
+    python, tree = _python_and_tree(source)
     cell = _Cell(index, python)
-    if python is None:
+    if isinstance(tree, SyntaxError):
+        cell.error = tree
+    if not isinstance(tree, ast.Module):
         return cell
-    try:
-        tree = ast.parse(python)
-    except (SyntaxError, ValueError) as exc:
-        cell.error = exc if isinstance(exc, SyntaxError) else SyntaxError(str(exc))
-        return cell
-    statements: list[ast.stmt] = list(tree.body)
-    statements += _timed_statements(tree)  # `%time y = f()` binds y in the kernel
-    for node in statements:
+    statements = _statements(python, tree)
+    if "run_line_magic" in python:
+        statements += _timed_statements(tree)  # `%time y = f()` binds y in the kernel
+    for node, text in statements:
         try:
-            table = symtable.symtable(ast.unparse(node), "<cell>", "exec")
+            table = symtable.symtable(text, "<cell>", "exec")
         except SyntaxError:  # e.g. `return` outside a function: Jupyter refuses the cell too
             continue
         binds, now, later = _scope_names(table)
@@ -260,6 +263,28 @@ def _analyse(index: int, python: str | None) -> _Cell:
             if binds - {node.name}:
                 cell.global_writes[node.name] = binds - {node.name}
     return cell
+
+
+def _statements(python: str, tree: ast.Module) -> list[tuple[ast.stmt, str]]:
+    """Each top-level statement with its own source text (its lines, decorators included).
+
+    Statements sharing a line (``a = 1; b = a``) are unparsed instead.
+    """
+    lines = python.splitlines()
+    spans = []
+    for node in tree.body:
+        start = min([node.lineno] + [d.lineno for d in getattr(node, "decorator_list", [])])
+        spans.append((start, node.end_lineno or node.lineno))
+    out = []
+    for i, (node, (start, end)) in enumerate(zip(tree.body, spans, strict=True)):
+        shared = (i > 0 and spans[i - 1][1] >= start) or (
+            i + 1 < len(spans) and spans[i + 1][0] <= end
+        )
+        if shared or node.col_offset != 0:
+            out.append((node, ast.unparse(node)))
+        else:
+            out.append((node, "\n".join(lines[start - 1 : end]) + "\n"))
+    return out
 
 
 def _scope_names(table: symtable.SymbolTable) -> tuple[set[str], set[str], set[str]]:
@@ -329,7 +354,7 @@ def _mutated(node: ast.stmt) -> set[str]:
     return roots
 
 
-def _timed_statements(tree: ast.Module) -> list[ast.stmt]:
+def _timed_statements(tree: ast.Module) -> list[tuple[ast.stmt, str]]:
     """The statements of ``%time STATEMENT`` line magics (they run in the user's namespace)."""
     found = []
     for node in ast.walk(tree):
@@ -342,7 +367,7 @@ def _timed_statements(tree: ast.Module) -> list[ast.stmt]:
             and node.args[0].value == "time"
         ):
             try:
-                found += ast.parse(node.args[1].value).body
+                found += [(n, ast.unparse(n)) for n in ast.parse(node.args[1].value).body]
             except (SyntaxError, ValueError):
                 pass
     return found
@@ -532,7 +557,7 @@ def load_notebook(
             exercise_cells.append(index)
         raw[index] = source
         labels[index] = cell_label(index, source)
-        cells.append(_analyse(index, to_python(source)))
+        cells.append(_analyse(index, source))
 
     if graded is None:
         names = list(lab_exercises(lab or meta_lab))
@@ -586,7 +611,7 @@ def _joined(cells: list[tuple[int, str]]) -> str:
     for _, source in cells:
         lines = source.splitlines(keepends=True)
         drop = set()
-        for node in ast.parse(source).body:
+        for node in ast.parse(source).body if "__future__" in source else ():
             if isinstance(node, ast.ImportFrom) and node.module == "__future__":
                 drop.update(range(node.lineno - 1, node.end_lineno))
                 line = ast.get_source_segment(source, node)
