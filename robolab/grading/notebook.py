@@ -46,7 +46,7 @@ EXERCISE_TAG = "exercise"
 PYTHON_CELL_MAGICS = frozenset({"time", "capture"})
 
 #: Longest first line shown when naming a cell.
-LABEL_CHARS = 30
+LABEL_CHARS = 40
 
 _DEF_LINE = re.compile(r"^\s*(?:async\s+def|def|class)\s+([A-Za-z_]\w*)", re.MULTILINE)
 
@@ -500,7 +500,11 @@ def _read(path: Path) -> dict:
 
 
 def load_notebook(
-    path: str | Path, *, lab: str | None = None, graded: Iterable[str] | None = None
+    path: str | Path,
+    *,
+    lab: str | None = None,
+    graded: Iterable[str] | None = None,
+    every_function: bool = False,
 ) -> LoadedNotebook:
     """Read a notebook and choose the cells the graded functions need.
 
@@ -516,6 +520,8 @@ def load_notebook(
         (:func:`lab_exercises`) and the functions of the notebook's own
         exercise cells, or, when neither is known, every function and class
         the notebook defines.
+    every_function : bool
+        Grade every function and class the notebook defines, whatever its lab.
 
     Returns
     -------
@@ -560,9 +566,9 @@ def load_notebook(
         cells.append(_analyse(index, source))
 
     if graded is None:
-        names = list(lab_exercises(lab or meta_lab))
+        names = [] if every_function else list(lab_exercises(lab or meta_lab))
         for cell in cells:
-            if cell.index in exercise_cells:
+            if cell.index in exercise_cells and not every_function:
                 names += [n for n in cell.functions if n not in names]
         if not names:  # unknown lab: every function, also those of cells that do not parse
             names = list(

@@ -770,7 +770,9 @@ def open_submission(
     path : str or Path
         The student's ``.ipynb``.
     lab : str, optional
-        The lab being graded; defaults to the notebook's metadata.
+        The lab being graded: the cells its exercises need are loaded. Without
+        it, the cells every function of the notebook needs are (the proxy's
+        ``lab`` is then the notebook's metadata).
     limits : Limits, optional
         Resource limits of the worker (defaults: :class:`Limits`).
 
@@ -786,7 +788,9 @@ def open_submission(
     WorkerStartError
         When the worker cannot be started or isolated.
     """
-    notebook = load_notebook(path, lab=lab)
+    # Graded as a lab, the lab's exercises are what the cells are chosen for; opened
+    # without one, every function the notebook defines is.
+    notebook = load_notebook(path, lab=lab) if lab else load_notebook(path, every_function=True)
     if lab is not None and notebook.lab is not None and lab != notebook.lab:
         warnings.warn(
             f"{notebook.path} says it is lab {notebook.lab!r}, graded as {lab!r}", stacklevel=2

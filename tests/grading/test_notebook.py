@@ -82,8 +82,11 @@ def test_cell_magics_that_run_python_become_their_body(source, runs):
 
 
 def test_cells_are_named_as_a_student_finds_them():
-    assert cell_label(11, "\n  def p_hit(z, z_star, z_max, sigma):\n") == (
-        "cell 12, `def p_hit(z, z_star, z_max, ...`"
+    assert cell_label(11, "\n  def p_hit(z, z_star, z_max, sigma_hit, extra):\n") == (
+        "cell 12, `def p_hit(z, z_star, z_max, sigma_hit, ...`"
+    )
+    assert cell_label(5, "from __future__ import annotations\nimport numpy") == (
+        "cell 6, `from __future__ import annotations`"
     )
     assert cell_label(0, "x = 1") == "cell 1, `x = 1`"
     assert cell_label(3, "\n\n") == "cell 4 (empty)"
