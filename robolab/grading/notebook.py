@@ -199,15 +199,20 @@ def _cell_magic(tree: ast.Module) -> tuple[str, str] | None:
     """``(name, body)`` when transformed source is one ``run_cell_magic`` call."""
     if len(tree.body) != 1 or not isinstance(tree.body[0], ast.Expr):
         return None
-    call = tree.body[0].value
+    args = _shell_call(tree.body[0].value, "run_cell_magic", 3)
+    return None if args is None else (args[0], args[2])
+
+
+def _shell_call(node: ast.AST, method: str, count: int) -> list[str] | None:
+    """The string arguments of ``get_ipython().<method>(...)`` with ``count`` of them, or None."""
     if (
-        isinstance(call, ast.Call)
-        and isinstance(call.func, ast.Attribute)
-        and call.func.attr == "run_cell_magic"
-        and len(call.args) == 3
-        and all(isinstance(a, ast.Constant) and isinstance(a.value, str) for a in call.args)
+        isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Attribute)
+        and node.func.attr == method
+        and len(node.args) == count
+        and all(isinstance(a, ast.Constant) and isinstance(a.value, str) for a in node.args)
     ):
-        return call.args[0].value, call.args[2].value
+        return [a.value for a in node.args]
     return None
 
 
@@ -358,16 +363,10 @@ def _timed_statements(tree: ast.Module) -> list[tuple[ast.stmt, str]]:
     """The statements of ``%time STATEMENT`` line magics (they run in the user's namespace)."""
     found = []
     for node in ast.walk(tree):
-        if (
-            isinstance(node, ast.Call)
-            and isinstance(node.func, ast.Attribute)
-            and node.func.attr == "run_line_magic"
-            and len(node.args) == 2
-            and all(isinstance(a, ast.Constant) and isinstance(a.value, str) for a in node.args)
-            and node.args[0].value == "time"
-        ):
+        args = _shell_call(node, "run_line_magic", 2)
+        if args is not None and args[0] == "time":
             try:
-                found += [(n, ast.unparse(n)) for n in ast.parse(node.args[1].value).body]
+                found += [(n, ast.unparse(n)) for n in ast.parse(args[1]).body]
             except (SyntaxError, ValueError):
                 pass
     return found

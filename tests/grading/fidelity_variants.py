@@ -201,70 +201,101 @@ def _line_magics(cells, ex):
     ]
 
 
-@style("shell-lines")
-def _shell_lines(cells, ex):
-    return prefix_exercises(cells, ex, "!pip --version\nfiles = !ls\n")
+#: Styles that prefix every exercise cell.
+PREFIXES = {
+    "shell-lines": "!pip --version\nfiles = !ls\n",
+    "time-cell-magic": "%%time\n",
+    "capture-cell-magic": "%%capture\n",
+}
+
+#: Styles whose wrappers check a line of their own (``body``), or a module-level value bound
+#: by code put at the top of each exercise cell (``prefix``) or in cells inserted before the
+#: first exercise cell (``cells``).
+WRAPPED: dict[str, dict] = {
+    "percent-continuation": {"body": "k = (7\n% 4)\nassert k == 3"},
+    "neq-continuation": {"body": "if (len(args)\n!= len(args)):\n    raise AssertionError"},
+    "lambda-value": {"prefix": "sq = lambda v: v * v\n", "body": "assert sq(3) == 9"},
+    "dict-comprehension": {
+        "prefix": "TABLE = {k: k * k for k in range(4)}\n",
+        "body": "assert TABLE[3] == 9",
+    },
+    "tuple-unpacking": {
+        "prefix": "LO, (MID, HI) = sorted((3, 1))[0], (2, 3)\n",
+        "body": "assert (LO, MID, HI) == (1, 2, 3)",
+    },
+    "time-line-magic": {"cells": ["%time SEED = sum(range(4))"], "body": "assert SEED == 6"},
+    "scipy-value": {
+        "cells": ["from scipy.stats import norm\nHALF = norm(0, 1).cdf(0)"],
+        "body": "assert HALF == 0.5",
+    },
+    "needed-cell-floods": {
+        "cells": ["for i in range(20000):\n    print('line', i)\nFLOODED = True"],
+        "body": "assert FLOODED",
+    },
+    "global-setup": {
+        "cells": ["def setup():\n    global CONFIG\n    CONFIG = {'ok': True}", "setup()"],
+        "body": "assert CONFIG['ok']",
+    },
+    "walrus": {"cells": ["print(W := 7)"], "body": "assert W == 7"},
+    "display-and-plot": {
+        "cells": [
+            "import matplotlib.pyplot as plt\nTHRESH = 0.25\ndisplay(THRESH)\n"
+            "plt.plot([0, 1], [THRESH, THRESH])\nplt.close('all')"
+        ],
+        "body": "assert THRESH == 0.25",
+    },
+}
+
+#: Scratch cells inserted after the first exercise cell (they define nothing graded).
+SCRATCH = {
+    "scratch-raises": Cell("x = 1 / 0  # trying something", ["raises-exception"]),
+    "scratch-syntax-error": Cell("def oops(:\n    pass", ["raises-exception"]),
+    "scratch-flood": Cell("for i in range(20000):\n    print(i)"),
+}
 
 
-@style("time-cell-magic")
-def _time_cell_magic(cells, ex):
-    return prefix_exercises(cells, ex, "%%time\n")
+def _prefixed(prefix: str) -> Style:
+    return lambda cells, ex: prefix_exercises(cells, ex, prefix)
 
 
-@style("capture-cell-magic")
-def _capture_cell_magic(cells, ex):
-    return prefix_exercises(cells, ex, "%%capture\n")
+def _wrapped(prefix: str = "", cells: tuple = (), body: str = "") -> Style:
+    def build(notebook: list[Cell], ex: dict[int, list[str]]) -> list[Cell]:
+        if prefix:
+            notebook = prefix_exercises(notebook, ex, prefix)
+        notebook = insert_before_exercises(notebook, ex, *(Cell(c) for c in cells))
+        return wrap_exercises(notebook, {p + len(cells): n for p, n in ex.items()}, body)
+
+    return build
 
 
-@style("time-line-magic")
-def _time_line_magic(cells, ex):
-    cells = insert_before_exercises(cells, ex, Cell("%time SEED = sum(range(4))"))
-    ex = {p + 1: n for p, n in ex.items()}
-    return wrap_exercises(cells, ex, "assert SEED == 6")
+def _scratch(cell: Cell) -> Style:
+    return lambda cells, ex: insert_after_first_exercise(cells, ex, cell)
 
 
-@style("percent-continuation")
-def _percent_continuation(cells, ex):
-    return wrap_exercises(cells, ex, "k = (7\n% 4)\nassert k == 3")
+STYLES.update({name: _prefixed(prefix) for name, prefix in PREFIXES.items()})
+STYLES.update({name: _wrapped(**spec) for name, spec in WRAPPED.items()})
+STYLES.update({name: _scratch(cell) for name, cell in SCRATCH.items()})
 
 
-@style("neq-continuation")
-def _neq_continuation(cells, ex):
-    return wrap_exercises(cells, ex, "if (len(args)\n!= len(args)):\n    raise AssertionError")
-
-
-@style("scipy-value")
-def _scipy_value(cells, ex):
-    cells = insert_before_exercises(
-        cells, ex, Cell("from scipy.stats import norm\nHALF = norm(0, 1).cdf(0)")
-    )
-    return wrap_exercises(cells, {p + 1: n for p, n in ex.items()}, "assert HALF == 0.5")
-
-
-@style("lambda-value")
-def _lambda_value(cells, ex):
-    cells = prefix_exercises(cells, ex, "sq = lambda v: v * v\n")
-    return wrap_exercises(cells, ex, "assert sq(3) == 9")
-
-
-@style("partial")
-def _partial(cells, ex):
+def rebind_exercises(
+    cells: list[Cell], exercises: dict[int, list[str]], template: str, header: str = ""
+) -> list[Cell]:
+    """Each exercise ``f`` renamed ``_f_impl``; ``template`` (naming ``{name}``) rebinds ``f``."""
     out = []
     for p, c in enumerate(cells):
-        if p in ex:
+        if p in exercises:
             source = c.source
-            for name in ex[p]:
-                source = _rename(source, name, f"_{name}_impl")
-                source += f"\n\n{name} = functools.partial(_{name}_impl)\n"
-            c = Cell("import functools\n" + source, c.tags)
+            for name in exercises[p]:
+                source = _rename(source, name, f"_{name}_impl") + template.format(name=name)
+            c = Cell(header + source, c.tags)
         out.append(c)
     return out
 
 
-@style("dict-comprehension")
-def _dict_comprehension(cells, ex):
-    cells = prefix_exercises(cells, ex, "TABLE = {k: k * k for k in range(4)}\n")
-    return wrap_exercises(cells, ex, "assert TABLE[3] == 9")
+@style("partial")
+def _partial(cells, ex):
+    template = "\n\n{name} = functools.partial(_{name}_impl)\n"
+    return rebind_exercises(cells, ex, template, header="import functools\n")
 
 
 @style("augmented-assignment")
@@ -297,29 +328,15 @@ def _star_import(cells, ex):
     return [Cell(star(c.source), c.tags) if p in ex else c for p, c in enumerate(cells)]
 
 
-@style("tuple-unpacking")
-def _tuple_unpacking(cells, ex):
-    cells = prefix_exercises(cells, ex, "LO, (MID, HI) = sorted((3, 1))[0], (2, 3)\n")
-    return wrap_exercises(cells, ex, "assert (LO, MID, HI) == (1, 2, 3)")
-
-
 @style("class-based")
 def _class_based(cells, ex):
-    out = []
-    for p, c in enumerate(cells):
-        if p in ex:
-            source = c.source
-            for name in ex[p]:
-                source = _rename(source, name, f"_{name}_impl")
-                source += (
-                    f"\n\nclass _{name.title()}Solver:\n    @staticmethod\n"
-                    "    def solve(*args, **kwargs):\n"
-                    f"        return _{name}_impl(*args, **kwargs)\n"
-                    f"\n\n{name} = _{name.title()}Solver.solve\n"
-                )
-            c = Cell(source, c.tags)
-        out.append(c)
-    return out
+    template = (
+        "\n\nclass _Solver_{name}:\n    @staticmethod\n"
+        "    def solve(*args, **kwargs):\n"
+        "        return _{name}_impl(*args, **kwargs)\n"
+        "\n\n{name} = _Solver_{name}.solve\n"
+    )
+    return rebind_exercises(cells, ex, template)
 
 
 @style("decorator")
@@ -392,20 +409,6 @@ def _helpers_after(cells, ex):
     return checks_last(out + [Cell("# helpers I wrote later\n" + "\n\n".join(rest))])
 
 
-@style("scratch-raises")
-def _scratch_raises(cells, ex):
-    return insert_after_first_exercise(
-        cells, ex, Cell("x = 1 / 0  # trying something", ["raises-exception"])
-    )
-
-
-@style("scratch-syntax-error")
-def _scratch_syntax(cells, ex):
-    return insert_after_first_exercise(
-        cells, ex, Cell("def oops(:\n    pass", ["raises-exception"])
-    )
-
-
 @style("scratch-sleep")
 def _scratch_sleep(cells, ex):
     return insert_after_first_exercise(
@@ -416,49 +419,6 @@ def _scratch_sleep(cells, ex):
             jupyter_source=f"import time\ntime.sleep({SHORT_SLEEP})",
         ),
     )
-
-
-@style("scratch-flood")
-def _scratch_flood(cells, ex):
-    return insert_after_first_exercise(cells, ex, Cell("for i in range(20000):\n    print(i)"))
-
-
-@style("needed-cell-floods")
-def _needed_flood(cells, ex):
-    cells = insert_before_exercises(
-        cells, ex, Cell("for i in range(20000):\n    print('line', i)\nFLOODED = True")
-    )
-    return wrap_exercises(cells, {p + 1: n for p, n in ex.items()}, "assert FLOODED")
-
-
-@style("global-setup")
-def _global_setup(cells, ex):
-    cells = insert_before_exercises(
-        cells,
-        ex,
-        Cell("def setup():\n    global CONFIG\n    CONFIG = {'ok': True}"),
-        Cell("setup()"),
-    )
-    return wrap_exercises(cells, {p + 2: n for p, n in ex.items()}, "assert CONFIG['ok']")
-
-
-@style("walrus")
-def _walrus(cells, ex):
-    cells = insert_before_exercises(cells, ex, Cell("print(W := 7)"))
-    return wrap_exercises(cells, {p + 1: n for p, n in ex.items()}, "assert W == 7")
-
-
-@style("display-and-plot")
-def _display_and_plot(cells, ex):
-    cells = insert_before_exercises(
-        cells,
-        ex,
-        Cell(
-            "import matplotlib.pyplot as plt\nTHRESH = 0.25\ndisplay(THRESH)\n"
-            "plt.plot([0, 1], [THRESH, THRESH])\nplt.close('all')"
-        ),
-    )
-    return wrap_exercises(cells, {p + 1: n for p, n in ex.items()}, "assert THRESH == 0.25")
 
 
 @style("no-tags")
@@ -534,3 +494,18 @@ def variants() -> list[Variant]:
             if lab in labs:
                 out.append(Variant(name, lab, STYLES[name](list(cells), dict(ex))))
     return out
+
+
+def wrong_variants() -> list[Variant]:
+    """Notebooks whose visible checks fail in Jupyter (``robolab check`` must fail them too)."""
+    cells, ex = solved_cells("demo")
+    out = []
+    for position, cell in enumerate(cells):
+        if position in ex and "normalize" in ex[position]:
+            cell = Cell(
+                _rename(cell.source, "normalize", "_normalize_impl")
+                + "\n\ndef normalize(weights):\n    return np.asarray(weights, dtype=float)\n",
+                cell.tags,
+            )
+        out.append(cell)
+    return [Variant("wrong-normalize", "demo", out)]

@@ -19,12 +19,14 @@ import nbformat
 import pytest
 
 from robolab.grading.runner import grade_all
-from tests.grading.fidelity_variants import LONG_SLEEP, PLAN, variants
+from tests.grading.fidelity_variants import LONG_SLEEP, PLAN, variants, wrong_variants
 
 pytestmark = pytest.mark.slow
 
 VARIANTS = variants()
 BY_NAME = {v.name: v for v in VARIANTS}
+#: Run by Jupyter too: their visible checks fail there, and in `robolab check`.
+WRONG = wrong_variants()
 
 #: Calls whose values the Jupyter run compares with the reference solution, per lab.
 CASES = {
@@ -89,10 +91,12 @@ def jupyter(tmp_path_factory) -> dict[str, tuple[bool, str]]:
     nbclient = pytest.importorskip("nbclient")
     verdicts: dict[str, tuple[bool, str]] = {}
     for lab in dict.fromkeys(v.lab for v in VARIANTS):
+        runs = [v for v in VARIANTS if v.lab == lab]
+        runs = runs[:-1] + [v for v in WRONG if v.lab == lab] + runs[-1:]  # future last
         combined = nbformat.v4.new_notebook()
         combined.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3"}
         spans: dict[str, tuple[int, int]] = {}
-        for variant in (v for v in VARIANTS if v.lab == lab):
+        for variant in runs:
             start = len(combined.cells)
             combined.cells += variant.notebook(for_jupyter=True).cells
             combined.cells.append(
@@ -196,3 +200,17 @@ def test_robolab_check_passes_where_the_visible_checks_pass_in_jupyter(
     out = capsys.readouterr().out
     assert code == 0, out[-2000:]
     assert "note:" not in out, out[-2000:]
+
+
+@pytest.mark.parametrize("variant", WRONG, ids=[v.name for v in WRONG])
+def test_robolab_check_fails_where_the_visible_checks_fail_in_jupyter(
+    jupyter, tmp_path, capsys, variant
+):
+    from robolab.grading.commands import check
+
+    ok, details = jupyter[variant.name]
+    assert not ok and "CheckFailed" in details, details
+    path = tmp_path / f"{variant.name}.ipynb"
+    nbformat.write(variant.notebook(), str(path))
+    assert check(path) == 1
+    assert "normalize" in capsys.readouterr().out
