@@ -154,10 +154,25 @@ def graded(tmp_path_factory) -> dict[str, object]:
         path = folder / f"{variant.name}.ipynb"
         nbformat.write(variant.notebook(), str(path))
         paths.append(path)
+    broken = folder / "demo-broken-needed-cell.ipynb"
+    nbformat.write(_broken_needed_cell(), str(broken))
     start = time.monotonic()
-    results = grade_all(paths, jobs=2, progress=False)
+    results = grade_all([*paths, broken], jobs=2, progress=False)
     elapsed = time.monotonic() - start
-    return {"elapsed": elapsed, **{v.name: r for v, r in zip(VARIANTS, results, strict=True)}}
+    return {
+        "elapsed": elapsed,
+        "broken": results[-1],
+        **{v.name: r for v, r in zip(VARIANTS, results[:-1], strict=True)},
+    }
+
+
+def _broken_needed_cell() -> nbformat.NotebookNode:
+    """The plain demo notebook whose wrap cell starts with an import that fails."""
+    nb = BY_NAME["demo-plain"].notebook()
+    for cell in nb.cells:
+        if cell.source.lstrip().startswith("from __future__") and "def wrap(" in cell.source:
+            cell.source = "import no_such_module\n" + cell.source
+    return nb
 
 
 @pytest.mark.parametrize("name", list(BY_NAME))
@@ -214,3 +229,17 @@ def test_robolab_check_fails_where_the_visible_checks_fail_in_jupyter(
     nbformat.write(variant.notebook(), str(path))
     assert check(path) == 1
     assert "normalize" in capsys.readouterr().out
+
+
+def test_feedback_names_a_failing_needed_cell_as_the_student_finds_it(graded):
+    from robolab.grading.report import render_feedback
+
+    result = graded["broken"]
+    scores = result.exercise_scores()
+    assert scores["wrap"][0] == 0 and scores["normalize"] == (scores["normalize"][1],) * 2
+    position = 1 + next(
+        i for i, c in enumerate(_broken_needed_cell().cells) if "no_such_module" in c.source
+    )
+    text = render_feedback(result)
+    assert f"cell {position}, `import no_such_module`" in text, text
+    assert "ModuleNotFoundError" in text
