@@ -196,10 +196,12 @@ def _restore_sigterm(previous) -> None:
 def check(notebook: Path) -> int:
     """Run the visible checks of the notebook's lab on the student's own functions.
 
-    The functions are loaded in this process: on a student's machine it is the
-    student's own code, so no isolation is needed (grading isolates, checking
-    does not). Exit 0 when every visible check passed, 1 when one failed, 2
-    when the notebook cannot be checked.
+    The notebook is loaded exactly as ``robolab grade`` loads it (the same
+    cells, run whole and in order, with the same load limit per cell), but in
+    this process: on a student's machine it is the student's own code, so no
+    isolation is needed (grading isolates, checking does not). Exit 0 when
+    every visible check passed, 1 when one failed, 2 when the notebook cannot
+    be checked.
     """
     from robolab.checks.base import CheckFailed
     from robolab.grading.notebook import load_notebook
@@ -231,13 +233,16 @@ def check(notebook: Path) -> int:
             f"{_shown(notebook)} is of lab {loaded.lab!r}, which has no visible checks "
             "(is the lab name in the notebook's metadata right?)"
         )
-    for p in loaded.problems:
-        print(f"note: cell {p.cell_index} was skipped ({p.kind}): {p.message}")
-    namespace: dict = {"__name__": "__notebook__"}
-    try:
-        exec(compile(loaded.source, str(notebook), "exec"), namespace)  # noqa: S102 - the student's own code
-    except Exception as exc:
-        return _error(f"defining your functions raised {type(exc).__name__}: {exc}")
+    # The same cells, run the same way, as `robolab grade` runs them in its worker.
+    from robolab.grading.kernel import load_budget, new_namespace, run_cells
+    from robolab.grading.proxy import Limits
+
+    namespace = new_namespace("__notebook__")
+    budget = load_budget(Limits().wall_seconds, Limits().cpu_seconds)
+    problems = list(loaded.problems)
+    problems += [loaded.problem(*failed) for failed in run_cells(namespace, loaded.cells, *budget)]
+    for p in sorted(problems, key=lambda p: p.cell_index):
+        print(f"note: {p}")
     failures = 0
     for check_fn in visible:
         exercise = check_fn.__name__.removeprefix("check_")

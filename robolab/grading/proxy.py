@@ -38,7 +38,8 @@ from pathlib import Path
 from typing import Any
 
 import robolab
-from robolab.grading import codec, processes, sandbox
+from robolab.grading import codec, observe, processes, sandbox
+from robolab.grading.kernel import load_budget
 from robolab.grading.notebook import CellProblem, LoadedNotebook, load_notebook
 from robolab.grading.worker import HEADER
 
@@ -629,7 +630,8 @@ class SubmissionProxy:
             _warn_if_weak(worker.report)
         try:
             deadline = time.monotonic() + self._limits.wall_seconds
-            worker.send(("define", self._notebook.cells), deadline)
+            budget = load_budget(self._limits.wall_seconds, self._limits.cpu_seconds)
+            worker.send(("define", self._notebook.cells, *budget), deadline)
             message = self._expect(
                 worker, worker.receive(deadline, self._limits.cpu_seconds), "defined"
             )
@@ -643,20 +645,23 @@ class SubmissionProxy:
                 student_traceback=exc.student_traceback,
             )
             if not self._loaded:
-                self.problems.append(CellProblem(-1, "error", self._broken.message))
+                self.problems.append(
+                    CellProblem(-1, "error", self._broken.message, "loading the notebook")
+                )
             raise self._broken from None
         if not self._loaded:
             self._loaded = True
             self.functions = [str(n) for n in message[1] if isinstance(n, str)]
             for problem in message[2]:
                 index, kind, text = problem
-                self.problems.append(CellProblem(int(index), str(kind), str(text)))
+                self.problems.append(self._notebook.problem(int(index), str(kind), str(text)))
         return worker
 
     def _expect(self, worker: _Worker, message: Any, kind: str, call_id: int | None = None) -> Any:
         ok = isinstance(message, tuple) and message and message[0] == kind
         if ok and call_id is not None:
-            ok = len(message) == 3 and message[1] == call_id
+            ok = len(message) in ((3, 4) if kind in ("ok", "error") else (3,))
+            ok = ok and message[1] == call_id
         if kind == "defined":
             ok = (
                 ok
@@ -740,14 +745,30 @@ class SubmissionProxy:
             ) from None
         finally:
             self.spent_seconds += time.monotonic() - started
-        return self._answer(worker, name, call_id, message)
+        return self._answer(worker, name, call_id, message, args, kwargs)
 
-    def _answer(self, worker: _Worker, name: str, call_id: int, message: Any) -> Any:
+    def _answer(
+        self,
+        worker: _Worker,
+        name: str,
+        call_id: int,
+        message: Any,
+        args: tuple = (),
+        kwargs: dict | None = None,
+    ) -> Any:
         head = message[0] if isinstance(message, tuple) and message else None
         if head == "ok":
-            return self._expect(worker, message, "ok", call_id)[2]
+            message = self._expect(worker, message, "ok", call_id)
+            if len(message) < 4:
+                return message[2]
+            # What the call did to its arguments and how its result shares memory with
+            # them, replayed on the caller's objects (robolab.grading.observe).
+            return observe.replay(message[2], message[3], args, kwargs or {})
         if head == "error":
-            info = self._expect(worker, message, "error", call_id)[2]
+            message = self._expect(worker, message, "error", call_id)
+            info = message[2]
+            if len(message) == 4:  # what it changed before raising
+                observe.replay(None, message[3], args, kwargs or {})
             if not (isinstance(info, dict) and isinstance(info.get("bases"), list)):
                 self._discard()
                 raise StudentCodeError("the worker sent a malformed error", kind="protocol")
@@ -818,7 +839,9 @@ def open_submission(
     path : str or Path
         The student's ``.ipynb``.
     lab : str, optional
-        The lab being graded; defaults to the notebook's metadata.
+        The lab being graded: the cells its exercises need are loaded. Without
+        it, the cells every function of the notebook needs are (the proxy's
+        ``lab`` is then the notebook's metadata).
     limits : Limits, optional
         Resource limits of the worker (defaults: :class:`Limits`).
 
@@ -834,7 +857,9 @@ def open_submission(
     WorkerStartError
         When the worker cannot be started or isolated.
     """
-    notebook = load_notebook(path)
+    # Graded as a lab, the lab's exercises are what the cells are chosen for; opened
+    # without one, every function the notebook defines is.
+    notebook = load_notebook(path, lab=lab) if lab else load_notebook(path, every_function=True)
     if lab is not None and notebook.lab is not None and lab != notebook.lab:
         warnings.warn(
             f"{notebook.path} says it is lab {notebook.lab!r}, graded as {lab!r}", stacklevel=2

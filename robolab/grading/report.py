@@ -188,7 +188,9 @@ def _check_name(test: TestOutcome) -> str:
 
 
 def _problem_line(p: dict) -> list[str]:
-    where = p.get("cell") or f"cell {p.get('cell_index', '?')}"
+    index = p.get("cell_index")
+    fallback = f"cell {index + 1}" if isinstance(index, int) and index >= 0 else "the notebook"
+    where = p.get("where") or p.get("cell") or fallback  # 1-based, as a student finds it
     return [
         f"- {code_span(str(where))} ({code_span(str(p.get('kind', 'problem')))}):",
         "",
