@@ -666,7 +666,7 @@ field_global = likelihood_field(grid, 0.3, MAX_DIST)
 N_GLOBAL, N_TRACK, GLOBAL_SEED = 3000, 1000, 16
 
 rng = np.random.default_rng(GLOBAL_SEED)
-REPLAY_TIMES = sorted({*mclplot.SNAPSHOT_TIMES, *np.arange(0.0, data.t[-1], 2.5)})  # for the replay below
+REPLAY_TIMES = sorted({*mclplot.SNAPSHOT_TIMES, *np.arange(0.0, data.t[-1], 5.0)})  # for the replay below
 global_run = mclplot.run_mcl(data, mcl_step, init_uniform(grid, N_GLOBAL, rng), field_global, GLOBAL_PARAMS, rng,
                              every=2, desc="global localization", snapshot_times=REPLAY_TIMES)
 mclplot.plot_snapshots(grid, global_run, title=f"Global localization: uniform start, {N_GLOBAL} particles",
@@ -695,7 +695,7 @@ else:
           f"{global_run['position_error'][:k].max():.1f} m")
 
 # %% [markdown]
-# The whole global run, replayed every 2.5 s (press play; the player steps frame by frame too):
+# The whole global run, replayed every 5 s (press play; the player steps frame by frame too):
 
 # %%
 from robolab.plotting.animation import animate_mcl, show_animation

@@ -561,13 +561,13 @@ plot_fastslam_map(run.true_poses, run.fiducials, result["path"], result["landmar
 plt.show()
 
 # %% [markdown]
-# The same filter replayed, every 10th step: watch the particle cloud spread between sightings and the
+# The same filter replayed, every 20th step: watch the particle cloud spread between sightings and the
 # fiducials appear on the map as they are first seen (the replay reruns *your* `fastslam_step`, 50 particles).
 
 # %%
 from robolab.plotting.animation import animate_fastslam, replay_fastslam, show_animation
 
-replay = replay_fastslam(run, init_particles, fastslam_step, 50, np.random.default_rng(0), every=10)
+replay = replay_fastslam(run, init_particles, fastslam_step, 50, np.random.default_rng(0), every=20)
 show_animation(animate_fastslam(replay))
 
 # %% [markdown]
