@@ -325,7 +325,11 @@ def _star_import(cells, ex):
         )
         return source
 
-    return [Cell(star(c.source), c.tags) if p in ex else c for p, c in enumerate(cells)]
+    # Only the first exercise cell: a star import in a later cell would rebind the names
+    # defined before it to the library's own functions (the kernel holds those at the end,
+    # so the notebook would delegate and the delegation guard rightly fails it).
+    first = min(ex)
+    return [Cell(star(c.source), c.tags) if p == first else c for p, c in enumerate(cells)]
 
 
 @style("class-based")
