@@ -127,11 +127,11 @@ def _model_oracle(scan, particles, field, z_hit, z_rand, laser_pose):
             row = math.floor((y - origin[1]) / res)
             inside = 0 <= row < dist.shape[0] and 0 <= col < dist.shape[1]
             d = dist[row, col] if inside else dmax
-            p = (
-                z_hit * math.exp(-0.5 * (d / sigma) ** 2) / (math.sqrt(2 * math.pi) * sigma)
-                + z_rand / zmax
-            )
-            out[m] += math.log(p)
+            log_gauss = -0.5 * (d / sigma) ** 2 - math.log(math.sqrt(2 * math.pi) * sigma)
+            if z_rand == 0:  # log form: log z_hit + log N, no exp that could underflow
+                out[m] += math.log(z_hit) + log_gauss
+            else:
+                out[m] += math.log(z_hit * math.exp(log_gauss) + z_rand / zmax)
     return out
 
 
@@ -246,7 +246,7 @@ def _moments_test(
         _var_ok(name, s, v)
 
 
-@grades("sample_motion_model_odometry", points=5)
+@grades("sample_motion_model_odometry", points=4)
 def test_motion_model_straight(lab):
     # odometry drives 1 m straight at heading 0.3 rad; particles face 0.7 rad elsewhere
     prev = np.array([1.0, 2.0, 0.3])
@@ -254,7 +254,7 @@ def test_motion_model_straight(lab):
     _moments_test(lab, [5.0, -3.0, 0.7], prev, now, 0.0, 1.0, 0.0, ALPHAS, seed=10)
 
 
-@grades("sample_motion_model_odometry", points=5)
+@grades("sample_motion_model_odometry", points=4)
 def test_motion_model_turning(lab):
     # rot1 = 0.5, trans = 1.2, rot2 = 0.4 in the odom frame; the particle faces -2.5 rad
     prev = np.array([-1.0, 0.5, 1.0])
@@ -263,6 +263,19 @@ def test_motion_model_turning(lab):
 
 
 @grades("sample_motion_model_odometry", points=4)
+def test_motion_model_across_the_pi_seam(lab):
+    """Odometry heading 3.0 rad, driving towards -3.0 rad and turning to -2.9: the deltas wrap.
+
+    rot1 = wrap(-3.0 - 3.0) = 0.283 and rot2 = wrap(-2.9 - 3.0 - rot1) = 0.1; unwrapped
+    deltas (-6.0, -6.18) would scale the noise by 2 pi-sized rotations.
+    """
+    prev = np.array([0.5, -0.3, 3.0])
+    now = np.array([0.5 + np.cos(-3.0), -0.3 + np.sin(-3.0), -2.9])
+    rot1 = float(wrap_angle(-6.0))
+    _moments_test(lab, [1.0, 2.0, -2.0], prev, now, rot1, 1.0, 0.1, ALPHAS, seed=16)
+
+
+@grades("sample_motion_model_odometry", points=3)
 def test_motion_model_in_place_rotation_guard(lab):
     # 4 mm sideways (< 0.01 m) while turning 0.8 rad: AMCL sets rot1 = 0, so rot2 = 0.8
     a1, a2, a3, a4 = ALPHAS
@@ -286,7 +299,7 @@ def test_motion_model_in_place_rotation_guard(lab):
     )
 
 
-@grades("sample_motion_model_odometry", points=4)
+@grades("sample_motion_model_odometry", points=3)
 def test_motion_model_corrected_reverse_motion(lab):
     # 1 m straight backwards: rot1 = -pi, rot2 = -pi (mod 2 pi). AMCL's corrected model uses
     # min(|rot|, |pi - |rot||) = 0 in the noise; the plain model uses pi.
@@ -401,7 +414,7 @@ def test_likelihood_field_gaussian_and_edge_cases(lab):
 LASER = np.array([0.1, 0.05, 0.3])
 
 
-@grades("likelihood_field_model", points=6)
+@grades("likelihood_field_model", points=5)
 def test_model_matches_table_6_3_oracle(lab):
     grid = _room()
     field = _field(grid, 0.1, 1.0)
@@ -422,7 +435,7 @@ def test_model_matches_table_6_3_oracle(lab):
     )
 
 
-@grades("likelihood_field_model", points=3)
+@grades("likelihood_field_model", points=2)
 def test_model_invariant_to_particle_order(lab):
     grid = _room()
     field = _field(grid, 0.1, 1.0)
@@ -466,7 +479,50 @@ def test_model_highest_at_true_pose(lab):
         assert logw0[0] < logw[min(100, len(others))] - 1.0, "params['laser_pose'] must be applied"
 
 
-@grades("likelihood_field_model", points=5)
+@grades("likelihood_field_model", points=3)
+def test_model_log_form_when_a_mixture_term_vanishes(lab):
+    """z_rand = 0 with endpoints 60 sigma from any wall, and 720 beams off the map: finite, exact.
+
+    Each Gaussian is then exp(-1800), 0.0 in float64, and a product of 720 beam
+    likelihoods of 0.017 is 1e-1280: the model must sum logs, never take the log
+    of a product or of an underflowed Gaussian.
+    """
+    grid = _room()
+    field = _field(grid, 0.05, 3.0)
+    rng = np.random.default_rng(33)
+    particles = np.column_stack(
+        [rng.uniform(0.0, 4.5, 30), rng.uniform(1.0, 4.0, 30), rng.uniform(-np.pi, np.pi, 30)]
+    )
+    particles[:5, :2] += [40.0, -30.0]  # far off the map: every endpoint at max_dist
+    angles = np.linspace(-2.5, 2.5, 41)
+    scan = {
+        "ranges": rng.uniform(0.2, 5.5, 41), "angles": angles, "range_min": 0.05, "range_max": 6.0
+    }
+    params = {"z_hit": 0.8, "z_rand": 0.0, "laser_pose": LASER}
+    got = _f(lab.likelihood_field_model(scan, particles, field, params))
+    expected = _model_oracle(scan, particles, field, 0.8, 0.0, LASER)
+    assert np.all(np.isfinite(got)), (
+        f"z_rand = 0, sigma_hit = 0.05, max_dist = 3: log-likelihoods must be finite "
+        f"(log z_hit + log N(d)), got {got[~np.isfinite(got)][:3]}"
+    )
+    np.testing.assert_allclose(
+        got, expected, rtol=1e-6, atol=1e-4,
+        err_msg="z_rand = 0: sum over beams of log z_hit - d^2 / (2 sigma^2) - log(sqrt(2 pi) sigma)",
+    )
+    many = {"ranges": np.full(720, 5.0), "angles": np.linspace(-np.pi, np.pi, 720, endpoint=False),
+            "range_min": 0.05, "range_max": 6.0}
+    far = np.array([[50.0, -40.0, 0.3]])
+    got = _f(lab.likelihood_field_model(many, far, _field(grid, 0.1, 1.0), {**MODEL, "laser_pose": LASER}))
+    worst = 720 * math.log(
+        0.9 * math.exp(-0.5 * (1.0 / 0.1) ** 2) / (math.sqrt(2 * math.pi) * 0.1) + 0.1 / 6.0
+    )
+    np.testing.assert_allclose(
+        got, [worst], rtol=1e-6,
+        err_msg="720 beams off the map: 720 log(z_hit N(max_dist) + z_rand / z_max), not log(product)",
+    )
+
+
+@grades("likelihood_field_model", points=4)
 def test_model_off_map_and_max_range_beams(lab):
     grid = _room()
     field = _field(grid, 0.1, 1.0)
@@ -506,7 +562,18 @@ def test_model_off_map_and_max_range_beams(lab):
 
 
 # ================================== normalize_log_weights (4) ====================================
-@grades("normalize_log_weights", points=4)
+@grades("normalize_log_weights", points=1)
+def test_normalize_log_weights_refuses_all_zero_weights(lab):
+    """Every log-weight -inf (every weight vanished) raises ValueError instead of returning NaN."""
+    ok = _f(lab.normalize_log_weights(np.array([-np.inf, -5.0, -np.inf])))
+    np.testing.assert_allclose(
+        ok, [0.0, 1.0, 0.0], atol=1e-12, err_msg="one finite log-weight among -inf takes all the weight"
+    )
+    with pytest.raises(ValueError):
+        lab.normalize_log_weights(np.full(4, -np.inf))
+
+
+@grades("normalize_log_weights", points=3)
 def test_normalize_log_weights_without_underflow(lab):
     logw = np.array([-1000.0, -1001.0, -1002.5, -np.inf, -999.0])
     w = _f(lab.normalize_log_weights(logw))
@@ -587,6 +654,45 @@ def test_mcl_step_update_thresholds_and_resample_interval(lab):
     np.testing.assert_allclose(_f(out[1]), 1 / 50)
 
 
+@grades("mcl_step", points=3)
+def test_mcl_step_multiplies_and_carries_incoming_weights(lab):
+    """Non-uniform weights in: w_new ~ w_old p(z | x) without resampling; no update keeps them.
+
+    Also a turn from 3.1 to -3.1 rad (0.08 rad, not 6.2) stays below update_min_a.
+    """
+    grid = _room()
+    field = _field(grid, 0.1, 1.0)
+    scan = _scan_from(grid, [2.0, 2.5, 0.4], LASER)
+    rng = np.random.default_rng(54)
+    p = np.array([2.0, 2.5, 0.4]) + rng.normal(0, 0.1, (40, 3))
+    w = rng.dirichlet(np.full(40, 0.3))
+    base = {**MODEL, "laser_pose": LASER, "alphas": (0, 0, 0, 0), "resample_interval": 3}
+    prev, now = np.zeros(3), np.array([0.3, 0.0, 0.0])
+    out = lab.mcl_step(p, w, prev, now, scan, field, base, np.random.default_rng(55))
+    moved = p.copy()
+    moved[:, :2] += 0.3 * np.column_stack([np.cos(p[:, 2]), np.sin(p[:, 2])])
+    logw = np.log(w) + _model_oracle(scan, moved, field, 0.9, 0.1, LASER)
+    expected = np.exp(logw - logw.max())
+    np.testing.assert_allclose(
+        _f(out[1]), expected / expected.sum(), rtol=1e-3, atol=1e-9,
+        err_msg="update without resampling: new weights = old weights * likelihood, normalized",
+    )
+    gated = {**base, "update_min_d": 0.2, "update_min_a": 0.5}
+    for small in (np.array([0.05, 0.0, 0.1]), None):
+        if small is None:  # heading 3.1 -> -3.1: turned 0.083 rad, below update_min_a
+            prev, small = np.array([0.0, 0.0, 3.1]), np.array([0.05, 0.0, -3.1])
+        out = lab.mcl_step(p, w, prev, small, scan, field, gated, np.random.default_rng(56))
+        assert not bool(out[2]), (
+            f"odometry {prev} -> {small}: moved 5 cm, turned {abs(wrap_angle(small[2] - prev[2])):.3f} "
+            "rad, below update_min_d = 0.2 / update_min_a = 0.5: expected updated = False"
+        )
+        np.testing.assert_allclose(
+            _f(out[1]), w / w.sum(), rtol=1e-9,
+            err_msg="without an update the incoming weights are returned unchanged",
+        )
+        prev = np.zeros(3)
+
+
 @pytest.fixture(scope="module")
 def bag():
     from robolab.plotting.mcl import load_localization
@@ -634,7 +740,7 @@ def _run(lab, bag, field, particles, seed, every, t_end, params=None):
     )
 
 
-@grades("mcl_step", points=8)
+@grades("mcl_step", points=6)
 def test_mcl_tracking_on_the_bag(lab, bag, bag_field):
     # Tracking from a Gaussian around the true start (10 cm, 0.1 rad): after the first 5 s the
     # estimate stays within 0.25 m (Nav2's localization test) and 0.2 rad of the ground truth.
@@ -658,7 +764,7 @@ GLOBAL_PARAMS = {"alphas": (0.3, 0.3, 0.3, 0.3), "z_hit": 0.9, "z_rand": 0.1, "m
 GLOBAL_SIGMA = 0.3
 
 
-@grades("mcl_step", points=6)
+@grades("mcl_step", points=5)
 def test_mcl_global_localization_converges(lab, bag):
     # Global localization from a uniform start (GLOBAL_N particles) at the bag's start, in an
     # office that looks like three others: by 45 s the best hypothesis must be within 0.25 m and
@@ -707,7 +813,15 @@ def _amcl_resample_limit(k, pop_err, pop_z, min_samples, max_samples):
     return min(max(n, min_samples), max_samples)
 
 
-@grades("kld_sample_size", points=3)
+@grades("kld_sample_size", points=1)
+def test_kld_sample_size_single_bin(lab):
+    """One occupied bin needs one particle (k - 1 = 0: the bound is 0, at least 1 sample)."""
+    for eps, z in ((0.05, 2.326), (0.01, 0.99)):
+        got = float(lab.kld_sample_size(1, eps, z))
+        assert got == 1, f"kld_sample_size(1, {eps}, {z}): expected 1, got {got}"
+
+
+@grades("kld_sample_size", points=2)
 def test_kld_sample_size_closed_form(lab):
     for eps, z in ((0.05, 2.326), (0.01, 0.99), (0.2, 1.645)):
         for k in (2, 3, 5, 10, 37, 100, 1000):
@@ -732,7 +846,59 @@ def test_kld_sample_size_equals_amcl_resample_limit(lab):
 
 
 # =================================== augmented_mcl_step (6) ======================================
-@grades("augmented_mcl_step", points=6)
+@grades("augmented_mcl_step", points=2)
+def test_augmented_mcl_running_averages_equal_the_formula(lab):
+    """w_slow, w_fast from non-zero values: one step of the exponential filters on w_avg.
+
+    w_avg is the mean over particles of p(z | x)^(1 / K), K the beams used
+    (the tempered likelihood of the text), with the Table 6.3 oracle; noise-free
+    motion and no odometry change, so the particles are known.
+    """
+    grid = _room()
+    field = _field(grid, 0.1, 1.0)
+    params = {**MODEL, "laser_pose": LASER, "alphas": (0, 0, 0, 0), "alpha_slow": 0.05, "alpha_fast": 0.5}
+    rng = np.random.default_rng(83)
+    p = np.array([1.0, 2.0, 0.2]) + rng.normal(0, 0.2, (300, 3))
+    scan = _scan_from(grid, [1.0, 2.0, 0.2], LASER)
+    r = scan["ranges"]
+    k = int(np.sum(np.isfinite(r) & (r >= scan["range_min"]) & (r < scan["range_max"])))
+    w_avg = float(np.mean(np.exp(_model_oracle(scan, p, field, 0.9, 0.1, LASER) / k)))
+    for slow, fast in ((0.2, 0.3), (1.5, 0.4)):
+        out = lab.augmented_mcl_step(
+            p, np.full(300, 1 / 300), np.zeros(3), np.zeros(3), scan, field, params,
+            np.random.default_rng(84), grid, slow, fast,
+        )
+        got = (float(out[2]), float(out[3]))
+        expected = (slow + 0.05 * (w_avg - slow), fast + 0.5 * (w_avg - fast))
+        np.testing.assert_allclose(
+            got, expected, rtol=1e-5,
+            err_msg=f"(w_slow, w_fast) from ({slow}, {fast}) with w_avg = {w_avg:.5f} "
+            "(mean of p(z|x)^(1/K)), alpha_slow 0.05, alpha_fast 0.5",
+        )
+
+
+@grades("augmented_mcl_step", points=1)
+def test_augmented_mcl_resamples_with_the_incoming_weights(lab):
+    """All incoming weight on one particle (likelihoods alike elsewhere): every survivor is it."""
+    grid = _room()
+    field = _field(grid, 0.1, 1.0)
+    params = {**MODEL, "laser_pose": LASER, "alphas": (0, 0, 0, 0)}
+    p = np.array([1.0, 2.0, 0.2]) + np.random.default_rng(85).normal(0, 0.3, (200, 3))
+    w = np.zeros(200)
+    w[7] = 1.0
+    scan = _scan_from(grid, [1.0, 2.0, 0.2], LASER)
+    out = lab.augmented_mcl_step(
+        p, w, np.zeros(3), np.zeros(3), scan, field, params, np.random.default_rng(86), grid, 0.0, 0.0
+    )
+    got = _f(out[0])
+    assert np.allclose(got, p[7], atol=1e-9), (
+        f"weights 1 on particle 7 and 0 elsewhere, w_slow = w_fast = 0 (no injection): every "
+        f"resampled particle must be particle 7 {p[7]}, got {len(np.unique(got.round(9), axis=0))} "
+        "distinct poses"
+    )
+
+
+@grades("augmented_mcl_step", points=3)
 def test_augmented_mcl_injects_random_particles_after_a_kidnapping(lab):
     grid = _room()
     field = _field(grid, 0.1, 1.0)

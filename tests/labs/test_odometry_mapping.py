@@ -100,7 +100,7 @@ def _supercover(s, e):
 # ------------------------------------------------------------------ scan_endpoints (15)
 
 
-@pytest.mark.grades("scan_endpoints", points=5)
+@pytest.mark.grades("scan_endpoints", points=4)
 def test_scan_endpoints_hand_computed(lab):
     """Endpoints of a laser at the robot's centre, by hand."""
     scan = _scan([1.0, 2.0, 0.5], [0.0, np.pi / 2, -np.pi / 4])
@@ -112,7 +112,7 @@ def test_scan_endpoints_hand_computed(lab):
     np.testing.assert_allclose(got, [[0.0, 1.0], [-2.0, 0.0], [h, h]], atol=1e-9)
 
 
-@pytest.mark.grades("scan_endpoints", points=5)
+@pytest.mark.grades("scan_endpoints", points=4)
 def test_scan_endpoints_rotated_and_offset_laser(lab):
     """A laser mounted backwards (yaw = pi) 0.1 m ahead of a robot facing +y."""
     scan = _scan([2.0, 1.0, 3.0], [0.0, np.pi / 2, np.pi])
@@ -145,6 +145,22 @@ def test_scan_endpoints_drop_invalid_ranges(lab):
     np.testing.assert_allclose(got, expected, atol=1e-9)
     none = _f(lab.scan_endpoints(_scan([np.nan, np.inf], [0.0, 1.0]), np.zeros(3), np.zeros(3)))
     assert none.size == 0
+
+
+@pytest.mark.grades("scan_endpoints", points=2)
+def test_scan_endpoints_zero_reading_with_range_min_zero(lab):
+    """With range_min = 0 a zero reading is still no hit (a hit needs r > 0); r = range_max is none."""
+    scan = _scan([0.0, 1.5, 0.0, 4.0, 2.0], [0.0, 0.5, 1.0, 1.5, -2.0], range_min=0.0, range_max=4.0)
+    got = _f(lab.scan_endpoints(scan, np.array([1.0, -1.0, 0.3]), np.zeros(3)))
+    expected = [[1.0 + 1.5 * np.cos(0.8), -1.0 + 1.5 * np.sin(0.8)],
+                [1.0 + 2.0 * np.cos(-1.7), -1.0 + 2.0 * np.sin(-1.7)]]
+    assert got.shape == (2, 2), (
+        f"ranges [0, 1.5, 0, 4, 2] with range_min = 0, range_max = 4: only 1.5 and 2 are hits, "
+        f"expected 2 endpoints, got {got.shape[0]}"
+    )
+    np.testing.assert_allclose(
+        got, expected, atol=1e-9, err_msg="endpoints of the two hits (robot at (1, -1), heading 0.3)"
+    )
 
 
 @pytest.mark.grades("scan_endpoints", points=2)
@@ -273,7 +289,7 @@ def test_counting_update_hand_computed(lab):
     np.testing.assert_array_equal(visits, exp_visits)
 
 
-@pytest.mark.grades("counting_map_update", points=6)
+@pytest.mark.grades("counting_map_update", points=5)
 def test_counting_update_matches_supercover_counts(lab):
     """Random scans on an offset grid: visits and hits per cell equal the brute-force counts."""
     rng = np.random.default_rng(RNG_SEED + 1)
@@ -334,6 +350,30 @@ def test_counting_update_invariants(lab):
         "cells beyond range_max must stay unseen"
     )
     assert visits[~far].sum() > 0
+
+
+@pytest.mark.grades("counting_map_update", points=2)
+def test_counting_update_zero_reading_and_inputs_unchanged(lab):
+    """A zero reading with range_min = 0 adds nothing; the hits and visits passed in are not modified."""
+    grid = _grid(6, 6, 1.0)
+    hits0, visits0 = np.ones((6, 6)), np.full((6, 6), 2.0)
+    before = (hits0.copy(), visits0.copy())
+    scan = _scan([0.0, 2.2], [np.pi / 2, 0.0], range_min=0.0, range_max=4.0)
+    hits, visits = (
+        _f(a) for a in lab.counting_map_update(hits0, visits0, scan, np.array([0.5, 0.5, 0.0]), grid)
+    )
+    exp_visits = visits0.copy()
+    exp_visits[0, 0:3] += 1  # only the 2.2 m beam along row 0, ending in cell (0, 2)
+    exp_hits = hits0.copy()
+    exp_hits[0, 2] += 1
+    np.testing.assert_array_equal(
+        visits, exp_visits, err_msg="visits: a zero reading (range_min = 0) is invalid, no visit"
+    )
+    np.testing.assert_array_equal(
+        hits, exp_hits, err_msg="hits: a zero reading (range_min = 0) is no hit at the laser"
+    )
+    np.testing.assert_array_equal(hits0, before[0], err_msg="the hits passed in were modified")
+    np.testing.assert_array_equal(visits0, before[1], err_msg="the visits passed in were modified")
 
 
 @pytest.mark.grades("counting_map_update", points=4)
@@ -430,7 +470,7 @@ def _tolerant_iou(occupancy, true_map, visible_walls):
     return matched / max(pred.sum() + missed, 1)
 
 
-@pytest.mark.grades("counting_map_update", points=6)
+@pytest.mark.grades("counting_map_update", points=5)
 def test_counting_map_from_bag_truth_beats_raw_odometry(lab, mapping_run):
     """Bundled bag: true poses give IoU >= 0.8 with the true walls; raw odometry 0.4 less.
 
@@ -539,7 +579,7 @@ def _table_9_2(grid, scan, pose, params):
     return delta
 
 
-@pytest.mark.grades("logodds_update", points=8)
+@pytest.mark.grades("logodds_update", points=5)
 def test_logodds_update_matches_table_9_2(lab):
     """One scan with hits, no-returns and invalid beams against a literal Table 9.2."""
     rng = np.random.default_rng(RNG_SEED + 4)
@@ -564,7 +604,7 @@ def test_logodds_update_matches_table_9_2(lab):
     )
 
 
-@pytest.mark.grades("logodds_update", points=6)
+@pytest.mark.grades("logodds_update", points=5)
 def test_logodds_update_is_sum_of_evidence(lab):
     """Updates commute: any order of three scans gives prior + the sum of each scan's evidence."""
     rng = np.random.default_rng(RNG_SEED + 5)
@@ -613,6 +653,45 @@ def test_logodds_update_single_beam_profile(lab):
 
 
 @pytest.mark.grades("logodds_update", points=3)
+def test_logodds_update_table_9_2_at_headings_far_from_zero(lab):
+    """Table 9.2 cell by cell from lasers facing 2.8, -2.5 and 1.6 rad: bearings wrap around +-pi."""
+    rng = np.random.default_rng(RNG_SEED + 6)
+    grid = _grid(22, 26, 0.1, origin=(-1.3, -1.1, 0.0))
+    angles = np.linspace(-np.pi, np.pi, 24, endpoint=False) + 0.02
+    for heading in (2.8, -2.5, 1.6):
+        ranges = rng.uniform(0.3, 1.3, angles.size)
+        ranges[[4, 17]] = [np.inf, 1.5]  # no return, = range_max
+        scan = _scan(ranges, angles, range_min=0.05, range_max=1.5)
+        pose = np.array([0.02, -0.04, heading])
+        got = _f(lab.logodds_update(np.zeros(grid.shape), scan, pose, grid, PARAMS))
+        expected = _table_9_2(grid, scan, pose, PARAMS)
+        bad = ~np.isclose(got, expected, atol=1e-9)
+        assert not bad.any(), (
+            f"laser heading {heading} rad: {bad.sum()} of {bad.size} cells differ from Table 9.2, "
+            f"e.g. cell {tuple(np.argwhere(bad)[0]) if bad.any() else None}: expected "
+            f"{expected[bad][:1]}, got {got[bad][:1]}"
+        )
+
+
+@pytest.mark.grades("logodds_update", points=2)
+def test_logodds_update_zero_reading_and_input_unchanged(lab):
+    """A zero reading with range_min = 0 is no information; the log-odds passed in are not modified."""
+    grid = _grid(1, 30, 0.1)
+    params = {"l_occ": 2.0, "l_free": -1.0, "l_0": 0.0, "alpha": 0.3, "beta": 0.1}
+    prior = np.full(grid.shape, 0.25)
+    before = prior.copy()
+    scan = _scan([0.0], [0.0], range_min=0.0, range_max=2.5)
+    got = _f(lab.logodds_update(prior, scan, np.array([0.0, 0.05, 0.0]), grid, params))
+    np.testing.assert_allclose(
+        got, before, atol=1e-12,
+        err_msg="one beam reading 0 with range_min = 0: no cell may change (it is not a hit at the laser)",
+    )
+    scan = _scan([1.0], [0.0], range_min=0.0, range_max=2.5)
+    lab.logodds_update(prior, scan, np.array([0.0, 0.05, 0.0]), grid, params)
+    np.testing.assert_array_equal(prior, before, err_msg="logodds_update modified the log-odds passed in")
+
+
+@pytest.mark.grades("logodds_update", points=2)
 def test_logodds_update_bad_input(lab):
     """Missing parameters, alpha <= 0 and a log-odds array of the wrong shape raise ValueError."""
     grid = _grid(10, 10, 0.1)

@@ -1,0 +1,33 @@
+# Mistake: unknown cells (-1) are clipped like values below the threshold and become free (0).
+# Class: empty or partially known maps
+def clip_map(occupancy, threshold=0.5):
+    r"""Clip an occupancy map to 0 / 1 at ``threshold`` (the seed's clipping); unknown stays -1.
+
+    .. math::
+
+        \hat m_i = \begin{cases} 1 & m_i \ge \tau \\ 0 & 0 \le m_i < \tau \\
+                                  -1 & m_i = -1 \ (\text{unknown}) \end{cases}
+
+    A value exactly at the threshold counts as occupied, as in
+    :attr:`robolab.maps.OccupancyGrid.occupied`.
+
+    Parameters
+    ----------
+    occupancy : array_like
+        Occupancy in [0, 1], or -1 for unknown cells.
+    threshold : float
+        ``tau`` in [0, 1] (default 0.5).
+
+    Returns
+    -------
+    numpy.ndarray of float, same shape
+        Values in {-1, 0, 1}.
+    """
+    m = as_array("occupancy", occupancy, finite=True)
+    known = m != UNKNOWN
+    if np.any((m[known] < 0) | (m[known] > 1)):
+        raise ValueError("occupancy values must be in [0, 1] or -1 (unknown)")
+    tau = check_positive("threshold", threshold, allow_zero=True)
+    if tau > 1:
+        raise ValueError(f"threshold must be in [0, 1], got {threshold!r}")
+    return (m >= tau).astype(float)

@@ -1,0 +1,99 @@
+# Mistake: no copy: the update adds into the caller's log-odds array and returns it.
+# Class: in-place modification and aliasing
+def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
+    r"""One step of occupancy grid mapping in log-odds form (Probabilistic Robotics, Table 9.1).
+
+    For every cell :math:`m_i` in the perceptual field of the scan,
+
+    .. math:: l_{t,i} = l_{t-1,i} + \mathrm{inverse\_sensor\_model}(m_i, x_t, z_t) - l_0 ,
+
+    and other cells keep their value. The inverse range sensor model is Table
+    9.2: with :math:`(x_i, y_i)` the centre of cell ``i`` and :math:`(x, y, \theta)`
+    the laser pose,
+
+    .. math::
+
+        r &= \sqrt{(x_i - x)^2 + (y_i - y)^2}, \qquad
+        \phi = \mathrm{wrap}(\operatorname{atan2}(y_i - y, x_i - x) - \theta) \\
+        k &= \operatorname{argmin}_j |\mathrm{wrap}(\phi - \theta_j)| \\
+        &\text{if } r > \min(z_{max}, z_k + \alpha/2) \text{ or } |\phi - \theta_k| > \beta/2:
+            \ l_0 \ \text{(no information)} \\
+        &\text{else if } z_k < z_{max} \text{ and } |r - z_k| < \alpha/2: \ l_{occ} \\
+        &\text{else if } r \le z_k: \ l_{free}
+
+    with :math:`z_{max}` = ``scan['range_max']``. A no-return beam (``+inf`` or
+    ``r >= range_max``) is a reading :math:`z_k = z_{max}`: free up to the max
+    range, never occupied. Invalid beams (NaN, ``<= 0``, ``< range_min``) are
+    removed before the nearest-beam search. The evidence a scan adds does not
+    depend on the map, so updates commute: the result after several scans is
+    the prior plus the sum of each scan's evidence, in any order.
+
+    Parameters
+    ----------
+    logodds : array_like, shape grid.shape
+        Current log-odds :math:`l_{t-1}` (finite; not modified).
+    scan : dict
+        ``ranges`` (B,), ``angles`` (B,), ``range_min``, ``range_max``.
+    pose : array_like, shape (3,)
+        The **laser's** pose in the map frame.
+    grid : robolab.maps.OccupancyGrid
+        The map's geometry.
+    inverse_sensor_model_params : dict
+        ``l_occ``, ``l_free``, ``l_0`` (log-odds), ``alpha`` (obstacle thickness,
+        metres, > 0), ``beta`` (beam width, radians, > 0); see
+        :data:`INVERSE_SENSOR_MODEL`.
+
+    Returns
+    -------
+    numpy.ndarray of float, shape grid.shape
+        The updated log-odds :math:`l_t`, a new array.
+    """
+    grid = _check_grid(grid)
+    out = np.asarray(logodds, dtype=float)
+    ranges, angles, rmin, rmax = _scan_arrays(scan)
+    laser = _pose("pose", pose)
+    p = _sensor_model_params(inverse_sensor_model_params)
+    hit, no_return = _beam_kinds(ranges, rmin, rmax)
+    used = hit | no_return
+    if not np.any(used):
+        return out
+    z = np.where(hit, ranges, rmax)[used]
+    beam_angles = wrap_angle(angles[used])
+    order = np.argsort(beam_angles, kind="stable")
+    beam_angles, z, can_hit = np.atleast_1d(beam_angles[order]), z[order], hit[used][order]
+
+    # the cells that can be in the perceptual field: a disc of radius z_max + alpha/2
+    reach = min(rmax, float(z.max()) + p["alpha"] / 2) / grid.resolution + 1.0
+    centre = grid.world_to_map(laser[:2])  # (col, row), rotation-invariant disc
+    lo = np.maximum(np.floor(centre - reach).astype(int), 0)
+    hi = np.minimum(np.ceil(centre + reach).astype(int), [grid.shape[1], grid.shape[0]])
+    if np.any(hi <= lo):
+        return out
+    # cell centres, separably: x = ox + cos(yaw) u - sin(yaw) v, y = oy + sin(yaw) u + cos(yaw) v
+    u = ((np.arange(lo[0], hi[0]) + 0.5) * grid.resolution)[None, :]
+    v = ((np.arange(lo[1], hi[1]) + 0.5) * grid.resolution)[:, None]
+    c, s = np.cos(grid.origin[2]), np.sin(grid.origin[2])
+    dx = (grid.origin[0] - laser[0]) + c * u - s * v
+    dy = (grid.origin[1] - laser[1]) + s * u + c * v
+    r = np.hypot(dx, dy)
+    phi = wrap_angle(np.arctan2(dy, dx) - laser[2])
+
+    # nearest beam in bearing, on the circle: the sorted angles padded by one beam
+    # on each side (shifted by 2 pi) so that both neighbours of phi are at hand
+    n = beam_angles.size
+    padded = np.concatenate(
+        [beam_angles[-1:] - 2 * np.pi, beam_angles, beam_angles[:1] + 2 * np.pi]
+    )
+    i = np.searchsorted(beam_angles, phi)  # padded[i] <= phi < padded[i + 1]
+    d_left = phi - padded[i]
+    d_right = padded[i + 1] - phi
+    k = np.where(d_left <= d_right, (i - 1) % n, i % n)
+    dphi = np.minimum(d_left, d_right)
+    zk = z[k]
+
+    in_field = (r <= np.minimum(rmax, zk + p["alpha"] / 2)) & (dphi <= p["beta"] / 2)
+    occupied = in_field & can_hit[k] & (np.abs(r - zk) < p["alpha"] / 2)
+    free = in_field & ~occupied & (r <= zk)
+    delta = np.where(occupied, p["l_occ"] - p["l_0"], np.where(free, p["l_free"] - p["l_0"], 0.0))
+    out[lo[1] : hi[1], lo[0] : hi[0]] += delta
+    return out
