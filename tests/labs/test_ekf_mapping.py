@@ -174,7 +174,7 @@ def test_state_jacobian_worked_example(lab):
 # -------------------------------------------------------------------- measurement_function (15)
 
 
-@pytest.mark.grades("measurement_function", points=10)
+@pytest.mark.grades("measurement_function", points=9)
 def test_measurement_function_against_brute_force_march(lab):
     """36 predicted ranges equal a 1 mm-step ray march (tolerance: the step) in two maps."""
     rng = np.random.default_rng(2)
@@ -195,7 +195,22 @@ def test_measurement_function_against_brute_force_march(lab):
             np.testing.assert_allclose(got, _march(grid, s, ANGLES, ZMAX), atol=2e-3)
 
 
-@pytest.mark.grades("measurement_function", points=5)
+@pytest.mark.grades("measurement_function", points=2)
+def test_measurement_function_evidence_map_threshold(lab):
+    """An evidence array is an obstacle only where its score is above 0.5: 0.5 and 0.3 are not."""
+    d = np.zeros((10, 30))
+    d[:, 20] = 0.5  # exactly the threshold: not an obstacle
+    d[:, 24] = 0.3  # positive evidence below the threshold: not an obstacle
+    d[:, 28] = 0.51  # above: the first obstacle, face at x = 28
+    z = _f(lab.measurement_function([12.5, 5.0, 0.0], d))
+    assert z.shape == (36,), f"36 beams expected, got shape {z.shape}"
+    assert z[0] == pytest.approx(15.5, abs=1e-9), (
+        f"evidence map with scores 0.5 (x = 20), 0.3 (x = 24) and 0.51 (x = 28), robot at x = 12.5 "
+        f"facing +x: beam 0 should end at the score-0.51 column, range 15.5; got {z[0]}"
+    )
+
+
+@pytest.mark.grades("measurement_function", points=4)
 def test_measurement_function_worked_examples(lab):
     """Facing a wall: beam 0 = distance to its face; empty map: max range; n_beams, max_range."""
     d = np.zeros((10, 30))
@@ -308,19 +323,33 @@ def test_inverse_sensor_model_matches_table_9_2(lab):
 
 @pytest.mark.grades("inverse_sensor_model", points=3)
 def test_inverse_sensor_model_bad_input(lab):
-    """A NaN range or a scan that does not match the beam angles raises ValueError."""
+    """A NaN range, a negative range or a scan that does not match the beam angles: ValueError."""
     scan = np.full(36, 5.0)
     scan[3] = np.nan
     with pytest.raises(ValueError):
         lab.inverse_sensor_model((20, 20), [10.0, 10.0, 0.0], scan)
     with pytest.raises(ValueError):
         lab.inverse_sensor_model((20, 20), [10.0, 10.0, 0.0], np.full(35, 5.0), beam_angles=ANGLES)
+    negative = np.full(36, 5.0)
+    negative[7] = -1.0
+    with pytest.raises(ValueError):
+        lab.inverse_sensor_model((20, 20), [10.0, 10.0, 0.0], negative)
 
 
 # ------------------------------------------------------------------------------ update_map (10)
 
 
-@pytest.mark.grades("update_map", points=5)
+@pytest.mark.grades("update_map", points=1)
+def test_update_map_leaves_its_input_alone(lab):
+    """update_map returns a new map: the map passed in keeps its values."""
+    grid = np.random.default_rng(7).normal(0, 1, (30, 25))
+    before = grid.copy()
+    out = _f(lab.update_map(grid, [12.3, 5.2, 0.4], np.full(36, 4.0)))
+    np.testing.assert_array_equal(grid, before, err_msg="update_map modified the map passed in")
+    assert not np.array_equal(out, before), "a 36-beam scan of 4-unit ranges must change some cells"
+
+
+@pytest.mark.grades("update_map", points=4)
 def test_update_map_accumulates(lab):
     """From zeros: one scan gives the inverse sensor model, the same scan twice gives twice it."""
     rng = np.random.default_rng(5)
@@ -383,8 +412,8 @@ def _box_scenario():
     return box, prior, np.clip(scan, 0, ZMAX)
 
 
-def _ekf_by_hand(box, x0, p0, q, r, scan):
-    v, w, dt = _CMD
+def _ekf_by_hand(box, x0, p0, q, r, scan, cmd=_CMD):
+    v, w, dt = cmd
     xp = _g(x0, v, w, dt)
     G = np.eye(3)
     G[0, 2], G[1, 2] = -v * np.sin(x0[2]) * dt, v * np.cos(x0[2]) * dt
@@ -403,10 +432,10 @@ def _ekf_by_hand(box, x0, p0, q, r, scan):
     x = xp + K @ (scan - hx)
     x[2] = wrap_angle(x[2])
     ikh = np.eye(3) - K @ H
-    return x, ikh @ pp @ ikh.T + K @ r @ K.T, xp
+    return x, ikh @ pp @ ikh.T + K @ r @ K.T, xp, xp + K @ (scan - hx)
 
 
-@pytest.mark.grades("ekf_mapping_step", points=12)
+@pytest.mark.grades("ekf_mapping_step", points=8)
 def test_ekf_step_equals_hand_written_ekf(lab):
     """State and covariance equal Table 3.3 computed by hand (numpy) on the same numbers.
 
@@ -424,7 +453,7 @@ def test_ekf_step_equals_hand_written_ekf(lab):
             scan.copy(),
             _CMD[2],
         )
-        x, p, _ = _ekf_by_hand(box, _X0, _P0, _Q, r, scan)
+        x, p, _, _ = _ekf_by_hand(box, _X0, _P0, _Q, r, scan)
         state, cov = _f(state), _f(cov)
         assert state.shape == (3,) and cov.shape == (3, 3) and _f(new_map).shape == (40, 40)
         np.testing.assert_allclose(state, x, atol=2e-4)
@@ -434,7 +463,7 @@ def test_ekf_step_equals_hand_written_ekf(lab):
         ), "the correction should move the estimate towards the true pose"
 
 
-@pytest.mark.grades("ekf_mapping_step", points=5)
+@pytest.mark.grades("ekf_mapping_step", points=4)
 def test_ekf_step_maps_from_the_predicted_pose(lab):
     """The returned map is the old map plus the inverse sensor model at the PREDICTED pose."""
     box, prior, scan = _box_scenario()
@@ -449,7 +478,7 @@ def test_ekf_step_maps_from_the_predicted_pose(lab):
     np.testing.assert_allclose(_f(new_map), prior + _ism_oracle((40, 40), xp, scan), atol=1e-12)
 
 
-@pytest.mark.grades("ekf_mapping_step", points=10)
+@pytest.mark.grades("ekf_mapping_step", points=6)
 def test_ekf_mapping_on_the_bundled_run(lab):
     """The first 25 s of the bundled 40 x 40 run: pose error and map agreement with the true world.
 
@@ -489,7 +518,7 @@ def test_ekf_mapping_on_the_bundled_run(lab):
     assert np.mean((m > 0.5)[world & seen]) > 0.6, "most seen obstacle cells should score > 0.5"
 
 
-@pytest.mark.grades("ekf_mapping_step", points=3)
+@pytest.mark.grades("ekf_mapping_step", points=2)
 def test_ekf_step_bad_input(lab):
     """A scan of the wrong length or with NaN ranges raises ValueError."""
     args = ((_X0, _P0, _Q, np.eye(36)), np.zeros((40, 40)), 1.0, 0.1)
@@ -499,3 +528,97 @@ def test_ekf_step_bad_input(lab):
     bad[0] = np.nan
     with pytest.raises(ValueError):
         lab.ekf_mapping_step(*args, bad, 0.1)
+
+
+@pytest.mark.grades("ekf_mapping_step", points=3)
+def test_ekf_step_prediction_linearizes_at_the_previous_mean(lab):
+    """With an uninformative sensor (R = 1e8 I) the step is the prediction: G P G^T + Q, G at mu_{t-1}.
+
+    A fast turn (omega dt = 1.5 rad) makes G at the previous heading and at the
+    predicted one very different.
+    """
+    box, prior, scan = _box_scenario()
+    x0, p0 = np.array([20.0, 20.0, 0.3]), np.diag([0.09, 0.09, 0.04])
+    v, w, dt = 2.0, 3.0, 0.5
+    state, cov, _ = lab.ekf_mapping_step(
+        (x0.copy(), p0.copy(), _Q.copy(), 1e8 * np.eye(36)), prior.copy(), v, w, scan.copy(), dt
+    )
+    G = np.eye(3)
+    G[0, 2], G[1, 2] = -v * np.sin(x0[2]) * dt, v * np.cos(x0[2]) * dt
+    np.testing.assert_allclose(
+        _f(state), _g(x0, v, w, dt), atol=1e-5,
+        err_msg="R = 1e8 I: the state is the predicted mean g(u, mu) (speed 2, turn 3 rad/s, dt 0.5)",
+    )
+    np.testing.assert_allclose(
+        _f(cov), G @ p0 @ G.T + _Q, atol=1e-5,
+        err_msg="R = 1e8 I: the covariance is G P G^T + Q with G at the previous mean (heading 0.3)",
+    )
+
+
+@pytest.mark.grades("ekf_mapping_step", points=3)
+def test_ekf_step_wraps_a_corrected_heading_near_pi(lab):
+    """Predicted heading pi - 0.02, true heading pi + 0.15: the correction crosses pi and must wrap."""
+    box = OccupancyGrid(_box(), 1.0)
+    prior = np.where(_box() > 0, 3.0, -1.0)
+    true = np.array([19.9, 20.0, np.pi + 0.15 - 2 * np.pi])
+    scan = np.clip(
+        cast_rays(box, true, ANGLES, ZMAX)[0] + np.random.default_rng(8).normal(0, 0.2, 36), 0, ZMAX
+    )
+    x0, cmd = np.array([20.0, 20.0, np.pi - 0.03]), (1.0, 0.1, 0.1)
+    x, p, _, unwrapped = _ekf_by_hand(box, x0, _P0, _Q, np.eye(36), scan, cmd)
+    assert unwrapped[2] > np.pi, f"test self-check: the correction must cross pi, got {unwrapped[2]}"
+    state, cov, _ = lab.ekf_mapping_step(
+        (x0.copy(), _P0.copy(), _Q.copy(), np.eye(36)), prior.copy(), cmd[0], cmd[1], scan, cmd[2]
+    )
+    state = _f(state)
+    assert -np.pi <= state[2] < np.pi, (
+        f"corrected heading {state[2]:.4f} rad (true {true[2]:.4f}): must be wrapped to [-pi, pi)"
+    )
+    np.testing.assert_allclose(
+        [*state[:2], wrap_angle(state[2] - x[2])], [*x[:2], 0.0], atol=0.03,
+        err_msg="state after the correction against Table 3.3 by hand (heading compared modulo 2 pi; "
+        "tolerance 0.03 for the free choice of Jacobian steps: beams end near the box's corners here)",
+    )
+
+
+@pytest.mark.grades("ekf_mapping_step", points=2)
+def test_ekf_step_from_an_empty_map_corrects_in_the_new_map(lab):
+    """First step, empty map: the correction ray-casts in the map that already holds this scan.
+
+    In the empty map every predicted range is zmax and H = 0, so nothing would be
+    corrected; in the updated map the 36 ranges pin the position down.
+    """
+    _, _, scan = _box_scenario()
+    state, cov, new_map = lab.ekf_mapping_step(
+        (_X0.copy(), _P0.copy(), _Q.copy(), np.eye(36)), np.zeros((40, 40)), *_CMD[:2], scan, _CMD[2]
+    )
+    v, _, dt = _CMD
+    G = np.eye(3)
+    G[0, 2], G[1, 2] = -v * np.sin(_X0[2]) * dt, v * np.cos(_X0[2]) * dt
+    predicted = G @ _P0 @ G.T + _Q
+    got = np.trace(_f(cov)[:2, :2])
+    assert got < 0.5 * np.trace(predicted[:2, :2]), (
+        f"from an empty map the position variance must shrink in the correction: predicted "
+        f"trace {np.trace(predicted[:2, :2]):.4f}, got {got:.4f} (was the map of this scan used?)"
+    )
+
+
+@pytest.mark.grades("ekf_mapping_step", points=2)
+def test_ekf_step_no_return_reads_as_max_range(lab):
+    """A reading of inf (no return) gives the same step as a reading of exactly max_range."""
+    box, prior, scan = _box_scenario()
+    capped, endless = scan.copy(), scan.copy()
+    capped[[3, 20, 31]] = ZMAX
+    endless[[3, 20]] = np.inf
+    endless[31] = 2 * ZMAX
+    results = [
+        lab.ekf_mapping_step(
+            (_X0.copy(), _P0.copy(), _Q.copy(), np.eye(36)), prior.copy(), *_CMD[:2], z, _CMD[2]
+        )
+        for z in (capped, endless)
+    ]
+    for name, a, b in zip(("state", "covariance", "map"), *results, strict=True):
+        np.testing.assert_allclose(
+            _f(b), _f(a), atol=1e-9,
+            err_msg=f"{name}: readings inf, inf, 40 must count as max_range = 20",
+        )

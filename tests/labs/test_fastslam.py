@@ -96,7 +96,12 @@ def test_init_particles_first_observation_has_nothing_seen(lab):
     seen = np.asarray(s["seen"], dtype=bool)
     assert seen.shape == (4, 3) and not seen.any()
     assert _f(s["means"]).shape == (4, 3, 2) and _f(s["covs"]).shape == (4, 3, 2, 2)
-    np.testing.assert_allclose(_f(s["weights"]).sum(), 1.0)
+    np.testing.assert_allclose(_f(s["weights"]).sum(), 1.0, err_msg="weights must sum to 1")
+    wrapped = lab.init_particles(3, 2, [1.0, 2.0, 4.0], init="first_observation")
+    np.testing.assert_allclose(
+        _f(wrapped["poses"])[:, 2], 4.0 - 2 * np.pi, atol=1e-12,
+        err_msg="x0 heading 4.0 rad: the particles' headings are wrapped to [-pi, pi)",
+    )
 
 
 @pytest.mark.grades("init_particles", points=2)
@@ -289,7 +294,7 @@ def test_update_landmark_moves_towards_the_measurement(lab):
 # -- fastslam_step: 24 ------------------------------------------------------------------
 
 
-@pytest.mark.grades("fastslam_step", points=8)
+@pytest.mark.grades("fastslam_step", points=6)
 def test_fastslam_step_one_particle_is_predict_then_kalman(lab):
     pose0 = np.array([1.0, 2.0, 0.4])
     means = np.array([[[4.0, 3.0], [-2.0, 5.0], [0.0, 0.0]]])
@@ -341,9 +346,24 @@ def test_fastslam_step_initializes_a_new_landmark_from_its_first_observation(lab
         Hi = np.linalg.inv(H)
         np.testing.assert_allclose(_f(out["covs"])[k, 1], Hi @ QT @ Hi.T, rtol=1e-7, atol=1e-12)
     np.testing.assert_allclose(_f(out["weights"]), np.full(3, 1 / 3), atol=1e-12)
+    # after a motion: the new landmark hangs off the PREDICTED pose
+    u, dt = np.array([1.0, 0.5]), 0.2
+    moved = poses + np.column_stack(
+        [u[0] * dt * np.cos(poses[:, 2]), u[0] * dt * np.sin(poses[:, 2]), np.full(3, u[1] * dt)]
+    )
+    out = lab.fastslam_step(
+        state, u, [[r, phi, 1.0]], np.zeros((3, 3)), QT, np.random.default_rng(8), dt=dt,
+        resample=False,
+    )
+    expected = moved[:, :2] + r * np.stack([np.cos(moved[:, 2] + phi), np.sin(moved[:, 2] + phi)], -1)
+    np.testing.assert_allclose(
+        _f(out["means"])[:, 1], expected, atol=1e-9,
+        err_msg="v = 1 m/s, omega = 0.5 rad/s, dt = 0.2, Q = 0: the first observation is placed from "
+        "the pose after the motion update",
+    )
 
 
-@pytest.mark.grades("fastslam_step", points=6)
+@pytest.mark.grades("fastslam_step", points=5)
 def test_fastslam_step_weights_are_normalized_and_finite_for_far_off_landmarks(lab):
     # every particle's landmark is ~25 m from where it is measured with a 0.1 m belief:
     # each likelihood is about exp(-15000), which underflows to 0.0 in float64.
@@ -367,7 +387,61 @@ def test_fastslam_step_weights_are_normalized_and_finite_for_far_off_landmarks(l
     np.testing.assert_allclose(w, expected / expected.sum(), rtol=1e-6, atol=1e-12)
 
 
-@pytest.mark.grades("fastslam_step", points=6)
+@pytest.mark.grades("fastslam_step", points=3)
+def test_fastslam_step_multiplies_incoming_weights(lab):
+    """Non-uniform weights in, resample=False: w_new ~ w_old N(z; z_hat, Q) per particle."""
+    m = 5
+    rng = np.random.default_rng(12)
+    poses = np.column_stack([rng.normal(0, 0.2, (m, 2)), rng.normal(0.1, 0.05, m)])
+    means = np.tile([[[4.0, 1.0]]], (m, 1, 1))
+    covs = np.broadcast_to(0.05 * np.eye(2), (m, 1, 2, 2)).copy()
+    w_old = np.array([0.5, 0.05, 0.2, 0.15, 0.1])
+    state = _state(poses, means, covs, np.ones((m, 1), dtype=bool), w_old)
+    z = np.array([[4.1, 0.15, 0.0]])
+    out = lab.fastslam_step(
+        state, [0.0, 0.0], z, np.zeros((3, 3)), QT, np.random.default_rng(13), dt=0.1, resample=False
+    )
+    ll = np.array([_kalman(means[k, 0], covs[k, 0], z[0, :2], poses[k], QT)[2] for k in range(m)])
+    expected = w_old * np.exp(ll - ll.max())
+    np.testing.assert_allclose(
+        _f(out["weights"]), expected / expected.sum(), rtol=1e-6, atol=1e-12,
+        err_msg=f"incoming weights {w_old}: new weights = old weights * likelihood, normalized",
+    )
+
+
+@pytest.mark.grades("fastslam_step", points=2)
+def test_fastslam_step_without_observations_keeps_weights_and_particles(lab):
+    """No observation: nothing to weight, so no resampling: weights and particle order survive."""
+    m = 4
+    poses = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.0, 2.0, -2.0], [3.0, 1.0, 3.0]])
+    means = np.arange(m * 2 * 2, dtype=float).reshape(m, 2, 2)
+    covs = np.broadcast_to(0.1 * np.eye(2), (m, 2, 2, 2)).copy()
+    w_old = np.array([0.7, 0.1, 0.15, 0.05])
+    state = _state(poses, means, covs, np.ones((m, 2), dtype=bool), w_old)
+    u, dt = np.array([0.5, 0.2]), 0.1
+    moved = np.column_stack(
+        [poses[:, 0] + u[0] * dt * np.cos(poses[:, 2]), poses[:, 1] + u[0] * dt * np.sin(poses[:, 2]),
+         _wrap(poses[:, 2] + u[1] * dt)]
+    )
+    for observations in (np.empty((0, 3)), None):
+        out = lab.fastslam_step(
+            state, u, observations, np.zeros((3, 3)), QT, np.random.default_rng(14), dt=dt
+        )
+        what = "None" if observations is None else "an empty (0, 3) array"
+        np.testing.assert_allclose(
+            _f(out["weights"]), w_old, atol=1e-12,
+            err_msg=f"observations = {what}: the weights must stay {w_old} (no resampling)",
+        )
+        np.testing.assert_allclose(
+            _f(out["poses"]), moved, atol=1e-12,
+            err_msg=f"observations = {what}: every particle moves, in its own order (no resampling)",
+        )
+        np.testing.assert_allclose(
+            _f(out["means"]), means, atol=0, err_msg=f"observations = {what}: landmarks unchanged"
+        )
+
+
+@pytest.mark.grades("fastslam_step", points=4)
 def test_fastslam_step_resampling_copies_landmarks_without_aliasing(lab):
     # particle 0's landmark agrees with the measurement, the others are 2 m off:
     # resampling must pick particle 0 for every slot, as independent copies.
@@ -495,7 +569,7 @@ def fiducial_run():
     return FiducialRobot(seed=1).to_run()
 
 
-@pytest.mark.grades("fastslam", points=12)
+@pytest.mark.grades("fastslam", points=8)
 def test_fastslam_maps_the_fiducials_and_tracks_the_robot(lab, fiducial_run):
     run = fiducial_run
     errs = []
@@ -520,6 +594,63 @@ def test_fastslam_maps_the_fiducials_and_tracks_the_robot(lab, fiducial_run):
 
 
 @pytest.mark.grades("fastslam", points=4)
+def test_fastslam_reports_the_particle_means(lab, fiducial_run):
+    """The path is the mean of the particles (circular mean heading); the map their weighted mixture.
+
+    The run's heading crosses +-pi three times, where an arithmetic mean of
+    headings near +pi and -pi would point backwards.
+    """
+    out = lab.fastslam(fiducial_run, 20, np.random.default_rng(21), init="first_observation", history=True)
+    path, particles = _f(out["path"]), _f(out["particles"])
+    assert particles.shape == (fiducial_run.n_steps + 1, 20, 3), (
+        f"history=True: particles must be (T + 1, M, 3) = {(fiducial_run.n_steps + 1, 20, 3)}, "
+        f"got {particles.shape}"
+    )
+    np.testing.assert_allclose(
+        path[:, :2], particles[:, :, :2].mean(1), atol=1e-9,
+        err_msg="path (x, y) at each step = mean of the particles (uniform weights after resampling)",
+    )
+    heading = np.arctan2(np.sin(particles[:, :, 2]).mean(1), np.cos(particles[:, :, 2]).mean(1))
+    bad = np.abs(_wrap(path[:, 2] - heading)) > 1e-9
+    assert not bad.any(), (
+        f"path heading must be the circular mean of the particles' headings: {bad.sum()} steps differ, "
+        f"e.g. step {np.argmax(bad)}: expected {heading[np.argmax(bad)]:.4f}, got {path[np.argmax(bad), 2]:.4f}"
+    )
+    state = out["state"]
+    w, mu, sig = _f(state["weights"]), _f(state["means"]), _f(state["covs"])
+    lm = np.einsum("k,kjd->jd", w, mu)
+    d = mu - lm
+    lm_cov = np.einsum("k,kjab->jab", w, sig) + np.einsum("k,kja,kjb->jab", w, d, d)
+    np.testing.assert_allclose(
+        _f(out["landmarks"]), lm, atol=1e-9,
+        err_msg="landmarks = weighted mean over the final particles of their landmark means",
+    )
+    np.testing.assert_allclose(
+        _f(out["landmark_covs"]), lm_cov, atol=1e-9,
+        err_msg="landmark_covs = weighted mixture covariance (mean of covariances + spread of means)",
+    )
+
+
+@pytest.mark.grades("fastslam", points=2)
+def test_fastslam_reports_unobserved_landmarks_as_nan(lab, fiducial_run):
+    """A landmark never observed has no estimate: NaN in landmarks and landmark_covs, observed False."""
+    import dataclasses
+
+    meas = fiducial_run.measurements
+    run = dataclasses.replace(fiducial_run, measurements=meas[meas[:, 3] != 3])
+    out = lab.fastslam(run, 10, np.random.default_rng(22), init="first_observation")
+    lm, cov = _f(out["landmarks"]), _f(out["landmark_covs"])
+    observed = np.asarray(out["observed"], dtype=bool)
+    assert not observed[3] and observed[[0, 1, 2, 4]].all(), (
+        f"landmark 3 removed from every measurement: observed must be [T, T, T, F, T], got {observed}"
+    )
+    assert np.all(np.isnan(lm[3])) and np.all(np.isnan(cov[3])), (
+        f"landmark 3 was never observed: expected NaN, got mean {lm[3]} and covariance {cov[3].tolist()}"
+    )
+    assert np.all(np.isfinite(lm[[0, 1, 2, 4]])), "observed landmarks must have finite estimates"
+
+
+@pytest.mark.grades("fastslam", points=2)
 def test_fastslam_output_shapes_and_start(lab):
     run = FiducialRobot(seed=2, n_steps=40).to_run()
     out = lab.fastslam(run, 8, np.random.default_rng(11), init="first_observation")
