@@ -1,5 +1,26 @@
-# Mistake: negative ranges are not refused.
-# Class: inputs the notebook says to refuse
+"""Negative ranges are not refused.
+
+Inputs the notebook says to refuse.
+
+class: refusal
+"""
+
+import numpy as np
+
+from robolab.maps import OccupancyGrid
+from robolab.validation import as_array, check_positive
+from solutions.ekf_mapping import (
+    L_FREE,
+    L_OCC,
+    L_UNSEEN,
+    MAX_RANGE,
+    _beam_angles,
+    _grid_shape,
+    _nearest_beam,
+    _state,
+)
+
+
 def inverse_sensor_model(
     grid_shape, state, scan, max_range=MAX_RANGE, beam_angles=None, beam_width=None
 ):

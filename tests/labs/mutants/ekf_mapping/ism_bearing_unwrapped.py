@@ -1,5 +1,26 @@
-# Mistake: the nearest beam is searched with |phi - theta_k| unwrapped.
-# Class: angle wrapping far from 0 and near +-pi (bearings at |theta| > 1 rad)
+"""The nearest beam is searched with |phi - theta_k| unwrapped.
+
+Angle wrapping far from 0 and near +-pi (bearings at |theta| > 1 rad).
+
+class: angle-wrap
+"""
+
+import numpy as np
+
+from robolab.maps import OccupancyGrid
+from robolab.validation import as_array, check_positive
+from solutions.ekf_mapping import (
+    L_FREE,
+    L_OCC,
+    L_UNSEEN,
+    MAX_RANGE,
+    _beam_angles,
+    _grid_shape,
+    _scan,
+    _state,
+)
+
+
 def inverse_sensor_model(
     grid_shape, state, scan, max_range=MAX_RANGE, beam_angles=None, beam_width=None
 ):

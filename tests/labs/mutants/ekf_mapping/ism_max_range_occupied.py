@@ -1,5 +1,27 @@
-# Mistake: a max-range reading marks the cells at zmax occupied.
-# Class: boundary values of a validity interval
+"""A max-range reading marks the cells at zmax occupied.
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.maps import OccupancyGrid
+from robolab.validation import as_array, check_positive
+from solutions.ekf_mapping import (
+    L_FREE,
+    L_OCC,
+    L_UNSEEN,
+    MAX_RANGE,
+    _beam_angles,
+    _grid_shape,
+    _nearest_beam,
+    _scan,
+    _state,
+)
+
+
 def inverse_sensor_model(
     grid_shape, state, scan, max_range=MAX_RANGE, beam_angles=None, beam_width=None
 ):

@@ -1,5 +1,16 @@
-# Mistake: G is evaluated at the predicted heading theta + omega dt instead of the previous mean.
-# Class: where a Jacobian is evaluated
+"""G is evaluated at the predicted heading theta + omega dt instead of the previous mean.
+
+Where a Jacobian is evaluated.
+
+class: jacobian-point
+"""
+
+import numpy as np
+
+from robolab.validation import check_finite, check_positive
+from solutions.ekf_mapping import _state
+
+
 def state_jacobian(state, speed, rotation_speed, dt):
     """Jacobian ``G_t = dg/dx`` of :func:`transition_model` (the seed's ``stateJacobian``).
 

@@ -1,5 +1,16 @@
-# Mistake: sign error in dx/dtheta (+v sin(theta) dt).
-# Class: derivative
+"""Sign error in dx/dtheta (+v sin(theta) dt).
+
+Derivative.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.validation import check_finite, check_positive
+from solutions.ekf_mapping import _state
+
+
 def state_jacobian(state, speed, rotation_speed, dt):
     """Jacobian ``G_t = dg/dx`` of :func:`transition_model` (the seed's ``stateJacobian``).
 

@@ -1,5 +1,16 @@
-# Mistake: G transposed: the heading terms in the last row instead of the last column.
-# Class: derivative
+"""G transposed: the heading terms in the last row instead of the last column.
+
+Derivative.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.validation import check_finite, check_positive
+from solutions.ekf_mapping import _state
+
+
 def state_jacobian(state, speed, rotation_speed, dt):
     """Jacobian ``G_t = dg/dx`` of :func:`transition_model` (the seed's ``stateJacobian``).
 

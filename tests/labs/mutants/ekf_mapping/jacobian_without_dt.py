@@ -1,5 +1,16 @@
-# Mistake: the time step is missing from G (-v sin(theta) instead of -v sin(theta) dt).
-# Class: units
+"""The time step is missing from G (-v sin(theta) instead of -v sin(theta) dt).
+
+Units.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.validation import check_finite, check_positive
+from solutions.ekf_mapping import _state
+
+
 def state_jacobian(state, speed, rotation_speed, dt):
     """Jacobian ``G_t = dg/dx`` of :func:`transition_model` (the seed's ``stateJacobian``).
 

@@ -1,5 +1,16 @@
-# Mistake: any positive evidence score counts as an obstacle (> 0 instead of > 0.5).
-# Class: boundary values of a validity interval
+"""Any positive evidence score counts as an obstacle (> 0 instead of > 0.5).
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+from robolab.maps import OccupancyGrid
+from robolab.raycast import cast_rays
+from robolab.validation import as_array, check_positive
+from solutions.ekf_mapping import MAX_RANGE, N_BEAMS, _beam_angles, _state
+
+
 def measurement_function(state, grid, n_beams=N_BEAMS, max_range=MAX_RANGE):
     """Predicted ranges ``h(x, m)`` of the beams, by ray casting in the map.
 
@@ -29,8 +40,10 @@ def measurement_function(state, grid, n_beams=N_BEAMS, max_range=MAX_RANGE):
         Predicted ranges in ``[0, max_range]``.
     """
     s = _state(state)
-    g = grid if isinstance(grid, OccupancyGrid) else OccupancyGrid(
-        (as_array("grid", grid, ndim=2, finite=True) > 0).astype(float), 1.0
+    g = (
+        grid
+        if isinstance(grid, OccupancyGrid)
+        else OccupancyGrid((as_array("grid", grid, ndim=2, finite=True) > 0).astype(float), 1.0)
     )
     angles = _beam_angles(n_beams)
     return cast_rays(g, s, angles, check_positive("max_range", max_range))[0]

@@ -1,5 +1,18 @@
-# Mistake: a forward difference (h(x + d) - h(x)) / d where the text asks for central differences.
-# Class: where a Jacobian is evaluated
+"""A forward difference (h(x + d) - h(x)) / d where the text asks for central differences.
+
+Where a Jacobian is evaluated.
+
+class: jacobian-point
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.raycast import cast_rays
+from robolab.validation import as_array, check_positive
+from solutions.ekf_mapping import JACOBIAN_STEPS, MAX_RANGE, N_BEAMS, _as_grid, _beam_angles, _state
+
+
 def measurement_jacobian(state, grid, n_beams=N_BEAMS, max_range=MAX_RANGE, steps=JACOBIAN_STEPS):
     """Jacobian ``H = dh/dx`` of :func:`measurement_function` by central differences.
 

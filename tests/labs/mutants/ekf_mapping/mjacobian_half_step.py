@@ -1,5 +1,18 @@
-# Mistake: central difference divided by delta instead of 2 delta.
-# Class: derivative
+"""Central difference divided by delta instead of 2 delta.
+
+Derivative.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.raycast import cast_rays
+from robolab.validation import as_array, check_positive
+from solutions.ekf_mapping import JACOBIAN_STEPS, MAX_RANGE, N_BEAMS, _as_grid, _beam_angles, _state
+
+
 def measurement_jacobian(state, grid, n_beams=N_BEAMS, max_range=MAX_RANGE, steps=JACOBIAN_STEPS):
     """Jacobian ``H = dh/dx`` of :func:`measurement_function` by central differences.
 

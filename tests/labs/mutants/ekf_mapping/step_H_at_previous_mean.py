@@ -1,5 +1,27 @@
-# Mistake: H is evaluated at the previous mean instead of the predicted mean.
-# Class: where a Jacobian is evaluated
+"""H is evaluated at the previous mean instead of the predicted mean.
+
+Where a Jacobian is evaluated.
+
+class: jacobian-point
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_finite, check_positive
+from solutions.ekf_mapping import (
+    MAX_RANGE,
+    _as_filter,
+    _as_grid,
+    _scan,
+    measurement_function,
+    measurement_jacobian,
+    state_jacobian,
+    transition_model,
+    update_map,
+)
+
+
 def ekf_mapping_step(ekf, grid, speed, rotation_speed, scan, dt, max_range=MAX_RANGE):
     """One step of EKF localization with mapping (the seed's ``GOMapping``).
 

@@ -1,5 +1,27 @@
-# Mistake: the correction ray-casts in the map before this scan was added (empty in the first step).
-# Class: steps that start from an empty map
+"""The correction ray-casts in the map before this scan was added (empty in the first step).
+
+Steps that start from an empty map.
+
+class: empty-map
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_finite, check_positive
+from solutions.ekf_mapping import (
+    MAX_RANGE,
+    _as_filter,
+    _as_grid,
+    _scan,
+    measurement_function,
+    measurement_jacobian,
+    state_jacobian,
+    transition_model,
+    update_map,
+)
+
+
 def ekf_mapping_step(ekf, grid, speed, rotation_speed, scan, dt, max_range=MAX_RANGE):
     """One step of EKF localization with mapping (the seed's ``GOMapping``).
 

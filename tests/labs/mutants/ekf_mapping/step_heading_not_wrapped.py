@@ -1,5 +1,26 @@
-# Mistake: the corrected heading is not wrapped.
-# Class: angle wrapping far from 0 and near +-pi (a corrected EKF heading)
+"""The corrected heading is not wrapped.
+
+Angle wrapping far from 0 and near +-pi (a corrected EKF heading).
+
+class: angle-wrap
+"""
+
+import numpy as np
+
+from robolab.validation import as_array, check_finite, check_positive
+from solutions.ekf_mapping import (
+    MAX_RANGE,
+    _as_filter,
+    _as_grid,
+    _scan,
+    measurement_function,
+    measurement_jacobian,
+    state_jacobian,
+    transition_model,
+    update_map,
+)
+
+
 def ekf_mapping_step(ekf, grid, speed, rotation_speed, scan, dt, max_range=MAX_RANGE):
     """One step of EKF localization with mapping (the seed's ``GOMapping``).
 

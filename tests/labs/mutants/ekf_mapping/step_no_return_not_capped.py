@@ -1,5 +1,26 @@
-# Mistake: readings of inf or beyond max_range are used as they are instead of as max_range.
-# Class: boundary values of a validity interval (no-return readings)
+"""Readings of inf or beyond max_range are used as they are instead of as max_range.
+
+Boundary values of a validity interval (no-return readings).
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_finite, check_positive
+from solutions.ekf_mapping import (
+    MAX_RANGE,
+    _as_filter,
+    _as_grid,
+    measurement_function,
+    measurement_jacobian,
+    state_jacobian,
+    transition_model,
+    update_map,
+)
+
+
 def ekf_mapping_step(ekf, grid, speed, rotation_speed, scan, dt, max_range=MAX_RANGE):
     """One step of EKF localization with mapping (the seed's ``GOMapping``).
 

@@ -1,5 +1,17 @@
-# Mistake: the position moves along the new heading theta + omega dt instead of the old one.
-# Class: which state a step uses
+"""The position moves along the new heading theta + omega dt instead of the old one.
+
+Which state a step uses.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import check_finite, check_positive
+from solutions.ekf_mapping import _state
+
+
 def transition_model(state, speed, rotation_speed, dt):
     """Predict the pose with the seed's unicycle model (``transitionModel``).
 

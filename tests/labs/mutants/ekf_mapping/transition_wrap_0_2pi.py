@@ -1,5 +1,16 @@
-# Mistake: the heading is wrapped to [0, 2 pi) instead of [-pi, pi).
-# Class: angle wrapping far from 0 and near +-pi
+"""The heading is wrapped to [0, 2 pi) instead of [-pi, pi).
+
+Angle wrapping far from 0 and near +-pi.
+
+class: angle-wrap
+"""
+
+import numpy as np
+
+from robolab.validation import check_finite, check_positive
+from solutions.ekf_mapping import _state
+
+
 def transition_model(state, speed, rotation_speed, dt):
     """Predict the pose with the seed's unicycle model (``transitionModel``).
 

@@ -1,5 +1,15 @@
-# Mistake: the evidence is added into the caller's map (m += ...) and that array is returned.
-# Class: in-place modification and aliasing
+"""The evidence is added into the caller's map (m += ...) and that array is returned.
+
+In-place modification and aliasing.
+
+class: aliasing
+"""
+
+from robolab.maps import OccupancyGrid
+from robolab.validation import as_array
+from solutions.ekf_mapping import MAX_RANGE, inverse_sensor_model
+
+
 def update_map(grid, state, scan, max_range=MAX_RANGE):
     """Add one scan's inverse sensor model to the evidence map (the seed's ``mapping``).
 

@@ -1,5 +1,15 @@
-# Mistake: the map is replaced by the new scan's evidence instead of accumulating it.
-# Class: empty or partially known maps
+"""The map is replaced by the new scan's evidence instead of accumulating it.
+
+Empty or partially known maps.
+
+class: empty-map
+"""
+
+from robolab.maps import OccupancyGrid
+from robolab.validation import as_array
+from solutions.ekf_mapping import MAX_RANGE, inverse_sensor_model
+
+
 def update_map(grid, state, scan, max_range=MAX_RANGE):
     """Add one scan's inverse sensor model to the evidence map (the seed's ``mapping``).
 

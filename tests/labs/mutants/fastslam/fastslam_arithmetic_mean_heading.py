@@ -1,6 +1,18 @@
-# Mistake: the heading of the path is the arithmetic mean of the particles' headings, not the circular
-#   mean.
-# Class: which estimate is reported (the heading of the path; circular mean)
+"""The heading of the path is the arithmetic mean of the particles' headings, not the circular
+mean.
+
+Which estimate is reported (the heading of the path; circular mean).
+
+class: reported-estimate
+"""
+
+import numpy as np
+
+from robolab.fiducials import as_robot
+from robolab.validation import check_rng
+from solutions.fastslam import _mean_pose, fastslam_step, init_particles
+
+
 def fastslam(
     robot_or_run, n_particles, rng, init="first_observation", Q=None, Qt=None, history=False
 ):

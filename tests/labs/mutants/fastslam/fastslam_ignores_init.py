@@ -1,5 +1,17 @@
-# Mistake: the init argument is ignored: landmarks always start from the seed's prior at the origin.
-# Class: steps that start from an empty map
+"""The init argument is ignored: landmarks always start from the seed's prior at the origin.
+
+Steps that start from an empty map.
+
+class: empty-map
+"""
+
+import numpy as np
+
+from robolab.fiducials import as_robot
+from robolab.validation import check_rng
+from solutions.fastslam import _mean_pose, fastslam_step, init_particles
+
+
 def fastslam(
     robot_or_run, n_particles, rng, init="first_observation", Q=None, Qt=None, history=False
 ):

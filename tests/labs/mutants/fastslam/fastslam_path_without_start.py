@@ -1,5 +1,17 @@
-# Mistake: the path leaves out the start pose x0 (T rows instead of T + 1).
-# Class: boundary values of a validity interval
+"""The path leaves out the start pose x0 (T rows instead of T + 1).
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.fiducials import as_robot
+from robolab.validation import check_rng
+from solutions.fastslam import _mean_pose, fastslam_step, init_particles
+
+
 def fastslam(
     robot_or_run, n_particles, rng, init="first_observation", Q=None, Qt=None, history=False
 ):

@@ -1,5 +1,17 @@
-# Mistake: the path reports the heaviest particle (after resampling: particle 0) instead of the mean.
-# Class: which estimate is reported
+"""The path reports the heaviest particle (after resampling: particle 0) instead of the mean.
+
+Which estimate is reported.
+
+class: reported-estimate
+"""
+
+import numpy as np
+
+from robolab.fiducials import as_robot
+from robolab.validation import check_rng
+from solutions.fastslam import _mean_pose, fastslam_step, init_particles
+
+
 def fastslam(
     robot_or_run, n_particles, rng, init="first_observation", Q=None, Qt=None, history=False
 ):

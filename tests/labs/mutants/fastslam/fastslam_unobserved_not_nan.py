@@ -1,5 +1,17 @@
-# Mistake: landmarks never observed are reported at their placeholder prior instead of NaN.
-# Class: empty or partially known maps
+"""Landmarks never observed are reported at their placeholder prior instead of NaN.
+
+Empty or partially known maps.
+
+class: empty-map
+"""
+
+import numpy as np
+
+from robolab.fiducials import as_robot
+from robolab.validation import check_rng
+from solutions.fastslam import _mean_pose, fastslam_step, init_particles
+
+
 def fastslam(
     robot_or_run, n_particles, rng, init="first_observation", Q=None, Qt=None, history=False
 ):

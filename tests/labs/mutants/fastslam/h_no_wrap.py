@@ -1,5 +1,15 @@
-# Mistake: the bearing atan2(dy, dx) - theta is not wrapped.
-# Class: angle wrapping far from 0 and near +-pi
+"""The bearing atan2(dy, dx) - theta is not wrapped.
+
+Angle wrapping far from 0 and near +-pi.
+
+class: angle-wrap
+"""
+
+import numpy as np
+
+from solutions.fastslam import _last_dim
+
+
 def h(landmark, pose):
     r"""Range-bearing measurement :math:`\hat z = h(\mu_j, x)` (Probabilistic Robotics eq. 6.40).
 

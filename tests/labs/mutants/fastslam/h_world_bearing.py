@@ -1,5 +1,15 @@
-# Mistake: the bearing is the world angle to the landmark, the robot's heading is not subtracted.
-# Class: frames
+"""The bearing is the world angle to the landmark, the robot's heading is not subtracted.
+
+Frames.
+
+class: formula
+"""
+
+import numpy as np
+
+from solutions.fastslam import _last_dim
+
+
 def h(landmark, pose):
     r"""Range-bearing measurement :math:`\hat z = h(\mu_j, x)` (Probabilistic Robotics eq. 6.40).
 

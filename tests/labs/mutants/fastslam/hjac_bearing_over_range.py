@@ -1,5 +1,15 @@
-# Mistake: the bearing row divided by the range instead of the squared range.
-# Class: derivative
+"""The bearing row divided by the range instead of the squared range.
+
+Derivative.
+
+class: formula
+"""
+
+import numpy as np
+
+from solutions.fastslam import MIN_SQ_RANGE, _last_dim
+
+
 def h_jacobian(landmark, pose):
     r"""Jacobian :math:`H = \partial h(\mu_j, x) / \partial \mu_j` with respect to the landmark.
 

@@ -1,5 +1,15 @@
-# Mistake: sign error in the bearing row (dy / q, -dx / q).
-# Class: derivative
+"""Sign error in the bearing row (dy / q, -dx / q).
+
+Derivative.
+
+class: formula
+"""
+
+import numpy as np
+
+from solutions.fastslam import MIN_SQ_RANGE, _last_dim
+
+
 def h_jacobian(landmark, pose):
     r"""Jacobian :math:`H = \partial h(\mu_j, x) / \partial \mu_j` with respect to the landmark.
 

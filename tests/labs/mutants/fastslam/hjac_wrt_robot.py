@@ -1,5 +1,15 @@
-# Mistake: the Jacobian with respect to the robot's position (the landmark's, negated).
-# Class: where a Jacobian is evaluated (with respect to what)
+"""The Jacobian with respect to the robot's position (the landmark's, negated).
+
+Where a Jacobian is evaluated (with respect to what).
+
+class: jacobian-point
+"""
+
+import numpy as np
+
+from solutions.fastslam import MIN_SQ_RANGE, _last_dim
+
+
 def h_jacobian(landmark, pose):
     r"""Jacobian :math:`H = \partial h(\mu_j, x) / \partial \mu_j` with respect to the landmark.
 

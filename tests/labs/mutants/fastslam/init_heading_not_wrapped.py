@@ -1,5 +1,16 @@
-# Mistake: the start heading is copied without wrapping it to [-pi, pi).
-# Class: angle wrapping far from 0 and near +-pi
+"""The start heading is copied without wrapping it to [-pi, pi).
+
+Angle wrapping far from 0 and near +-pi.
+
+class: angle-wrap
+"""
+
+import numpy as np
+
+from robolab.validation import as_array, check_count
+from solutions.fastslam import INIT_MODES, SIGMA0
+
+
 def init_particles(n_particles, n_landmarks, x0, init="prior"):
     r"""Create the initial FastSLAM particle set (seed 003, "Data Structure Initialization").
 

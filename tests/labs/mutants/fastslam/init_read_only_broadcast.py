@@ -1,5 +1,17 @@
-# Mistake: the covariances are a read-only broadcast view: every particle shares one 2 x 2 block.
-# Class: in-place modification and aliasing
+"""The covariances are a read-only broadcast view: every particle shares one 2 x 2 block.
+
+In-place modification and aliasing.
+
+class: aliasing
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_count
+from solutions.fastslam import INIT_MODES, SIGMA0
+
+
 def init_particles(n_particles, n_landmarks, x0, init="prior"):
     r"""Create the initial FastSLAM particle set (seed 003, "Data Structure Initialization").
 

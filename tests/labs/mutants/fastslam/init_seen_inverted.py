@@ -1,5 +1,17 @@
-# Mistake: seen is True for first_observation and False for prior (the two modes swapped).
-# Class: empty or partially known maps
+"""Seen is True for first_observation and False for prior (the two modes swapped).
+
+Empty or partially known maps.
+
+class: empty-map
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_count
+from solutions.fastslam import INIT_MODES, SIGMA0
+
+
 def init_particles(n_particles, n_landmarks, x0, init="prior"):
     r"""Create the initial FastSLAM particle set (seed 003, "Data Structure Initialization").
 

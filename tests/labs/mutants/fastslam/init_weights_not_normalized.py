@@ -1,5 +1,17 @@
-# Mistake: the initial weights are 1 each instead of 1 / M.
-# Class: degenerate weight sets (normalization)
+"""The initial weights are 1 each instead of 1 / M.
+
+Degenerate weight sets (normalization).
+
+class: degenerate-weights
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_count
+from solutions.fastslam import INIT_MODES, SIGMA0
+
+
 def init_particles(n_particles, n_landmarks, x0, init="prior"):
     r"""Create the initial FastSLAM particle set (seed 003, "Data Structure Initialization").
 

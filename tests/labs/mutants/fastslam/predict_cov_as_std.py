@@ -1,5 +1,15 @@
-# Mistake: the covariance Q multiplies the standard normals as if it were a standard deviation.
-# Class: noise model: variance against standard deviation
+"""The covariance Q multiplies the standard normals as if it were a standard deviation.
+
+Noise model: variance against standard deviation.
+
+class: formula
+"""
+
+from robolab.fiducials import DT
+from robolab.validation import as_array, check_covariance, check_positive, check_rng
+from solutions.fastslam import _poses, _sample_motion
+
+
 def predict_poses(poses, command, Q, rng, dt=DT):
     r"""Sample every particle's next pose from the lab's motion model (Table 13.1, line 4).
 

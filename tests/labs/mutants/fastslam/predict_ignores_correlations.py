@@ -1,5 +1,17 @@
-# Mistake: only the diagonal of Q is used: the correlated pose noise becomes independent.
-# Class: noise model
+"""Only the diagonal of Q is used: the correlated pose noise becomes independent.
+
+Noise model.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.fiducials import DT
+from robolab.validation import as_array, check_covariance, check_positive, check_rng
+from solutions.fastslam import _poses, _sample_motion
+
+
 def predict_poses(poses, command, Q, rng, dt=DT):
     r"""Sample every particle's next pose from the lab's motion model (Table 13.1, line 4).
 

@@ -1,5 +1,17 @@
-# Mistake: the new headings are not wrapped.
-# Class: angle wrapping far from 0 and near +-pi
+"""The new headings are not wrapped.
+
+Angle wrapping far from 0 and near +-pi.
+
+class: angle-wrap
+"""
+
+import numpy as np
+
+from robolab.fiducials import DT, sqrt_psd
+from robolab.validation import as_array, check_covariance, check_positive, check_rng
+from solutions.fastslam import _poses
+
+
 def predict_poses(poses, command, Q, rng, dt=DT):
     r"""Sample every particle's next pose from the lab's motion model (Table 13.1, line 4).
 

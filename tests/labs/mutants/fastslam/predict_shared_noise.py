@@ -1,5 +1,18 @@
-# Mistake: one noise draw shared by every particle.
-# Class: vectorization over particles
+"""One noise draw shared by every particle.
+
+Vectorization over particles.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.fiducials import DT, sqrt_psd
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_covariance, check_positive, check_rng
+from solutions.fastslam import _poses
+
+
 def predict_poses(poses, command, Q, rng, dt=DT):
     r"""Sample every particle's next pose from the lab's motion model (Table 13.1, line 4).
 

@@ -1,6 +1,26 @@
-# Mistake: a landmark seen for the first time weights the particle with the EKF likelihood of the
-#   placeholder prior instead of p0.
-# Class: empty or partially known maps (first observation)
+"""A landmark seen for the first time weights the particle with the EKF likelihood of the
+placeholder prior instead of p0.
+
+Empty or partially known maps (first observation).
+
+class: empty-map
+"""
+
+import numpy as np
+
+from robolab.fiducials import DT
+from robolab.validation import check_covariance
+from solutions.fastslam import (
+    _check_state,
+    _ekf_update,
+    _landmark_from_observation,
+    _low_variance_resample,
+    _normalize_log_weights,
+    _observations,
+    predict_poses,
+)
+
+
 def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True):
     r"""One step of FastSLAM 1.0 with known correspondences (Probabilistic Robotics Table 13.1).
 

@@ -1,6 +1,27 @@
-# Mistake: a new landmark is placed at the bearing in the world frame (the robot's heading is not
-#   added).
-# Class: frames
+# ruff: noqa: F841, E501 -- a student mistake leaves a variable unused; lines as the student wrote them
+"""A new landmark is placed at the bearing in the world frame (the robot's heading is not added).
+
+Frames.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.fiducials import DT
+from robolab.validation import check_covariance
+from solutions.fastslam import (
+    LOG_P0,
+    _check_state,
+    _ekf_update,
+    _landmark_from_observation,
+    _low_variance_resample,
+    _normalize_log_weights,
+    _observations,
+    predict_poses,
+)
+
+
 def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True):
     r"""One step of FastSLAM 1.0 with known correspondences (Probabilistic Robotics Table 13.1).
 
@@ -62,7 +83,9 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
         mu, sigma, known = means[:, j], covs[:, j], seen[:, j]  # (M, b, 2), (M, b, 2, 2), (M, b)
         new_mu, new_sigma, log_like = _ekf_update(mu, sigma, z[None], poses[:, None, :], qt)
         if not known.all():
-            init_mu, init_sigma = _landmark_from_observation(z[None], poses[:, None, :] * np.array([1.0, 1.0, 0.0]), qt)
+            init_mu, init_sigma = _landmark_from_observation(
+                z[None], poses[:, None, :] * np.array([1.0, 1.0, 0.0]), qt
+            )
             new_mu = np.where(known[..., None], new_mu, init_mu)
             new_sigma = np.where(known[..., None, None], new_sigma, init_sigma)
             log_like = np.where(known, log_like, LOG_P0)

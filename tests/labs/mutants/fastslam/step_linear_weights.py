@@ -1,5 +1,25 @@
-# Mistake: normalizes in linear space: when every likelihood underflows the weights are 0 / 0 = NaN.
-# Class: degenerate weight sets (every weight vanishing)
+"""Normalizes in linear space: when every likelihood underflows the weights are 0 / 0 = NaN.
+
+Degenerate weight sets (every weight vanishing).
+
+class: degenerate-weights
+"""
+
+import numpy as np
+
+from robolab.fiducials import DT
+from robolab.validation import check_covariance
+from solutions.fastslam import (
+    LOG_P0,
+    _check_state,
+    _ekf_update,
+    _landmark_from_observation,
+    _low_variance_resample,
+    _observations,
+    predict_poses,
+)
+
+
 def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True):
     r"""One step of FastSLAM 1.0 with known correspondences (Probabilistic Robotics Table 13.1).
 

@@ -1,5 +1,26 @@
-# Mistake: no copies: the landmark updates are written into the caller's state arrays.
-# Class: in-place modification and aliasing
+"""No copies: the landmark updates are written into the caller's state arrays.
+
+In-place modification and aliasing.
+
+class: aliasing
+"""
+
+import numpy as np
+
+from robolab.fiducials import DT
+from robolab.validation import check_covariance
+from solutions.fastslam import (
+    LOG_P0,
+    _check_state,
+    _ekf_update,
+    _landmark_from_observation,
+    _low_variance_resample,
+    _normalize_log_weights,
+    _observations,
+    predict_poses,
+)
+
+
 def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True):
     r"""One step of FastSLAM 1.0 with known correspondences (Probabilistic Robotics Table 13.1).
 

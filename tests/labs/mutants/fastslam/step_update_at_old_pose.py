@@ -1,5 +1,26 @@
-# Mistake: the landmark EKF is linearized and updated at the pose before the motion update.
-# Class: where a Jacobian is evaluated
+"""The landmark EKF is linearized and updated at the pose before the motion update.
+
+Where a Jacobian is evaluated.
+
+class: jacobian-point
+"""
+
+import numpy as np
+
+from robolab.fiducials import DT
+from robolab.validation import check_covariance
+from solutions.fastslam import (
+    LOG_P0,
+    _check_state,
+    _ekf_update,
+    _landmark_from_observation,
+    _low_variance_resample,
+    _normalize_log_weights,
+    _observations,
+    predict_poses,
+)
+
+
 def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True):
     r"""One step of FastSLAM 1.0 with known correspondences (Probabilistic Robotics Table 13.1).
 

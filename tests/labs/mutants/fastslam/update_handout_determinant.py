@@ -1,5 +1,17 @@
-# Mistake: the handout's |2 pi Q|^(+1/2) in the weight instead of |2 pi Q|^(-1/2).
-# Class: numerics of the log form
+"""The handout's |2 pi Q|^(+1/2) in the weight instead of |2 pi Q|^(-1/2).
+
+Numerics of the log form.
+
+class: underflow
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_covariance
+from solutions.fastslam import _inv2, _last_dim, _range_bearing, _range_bearing_jacobian
+
+
 def update_landmark(mean, cov, z, pose, Qt):
     r"""EKF update of one landmark's Gaussian, and the log-likelihood (Table 13.1, lines 12-19).
 

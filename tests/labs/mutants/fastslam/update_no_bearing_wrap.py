@@ -1,5 +1,16 @@
-# Mistake: the bearing error z - z_hat is not wrapped.
-# Class: angle wrapping far from 0 and near +-pi
+"""The bearing error z - z_hat is not wrapped.
+
+Angle wrapping far from 0 and near +-pi.
+
+class: angle-wrap
+"""
+
+import numpy as np
+
+from robolab.validation import as_array, check_covariance
+from solutions.fastslam import _inv2, _last_dim, _range_bearing, _range_bearing_jacobian
+
+
 def update_landmark(mean, cov, z, pose, Qt):
     r"""EKF update of one landmark's Gaussian, and the log-likelihood (Table 13.1, lines 12-19).
 

@@ -1,6 +1,18 @@
-# Mistake: the weight uses the measurement noise Qt instead of the innovation covariance Q = H Sigma
-#   H^T + Qt.
-# Class: which covariance the weight uses
+"""The weight uses the measurement noise Qt instead of the innovation covariance Q = H Sigma H^T +
+Qt.
+
+Which covariance the weight uses.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_covariance
+from solutions.fastslam import _inv2, _last_dim, _range_bearing, _range_bearing_jacobian
+
+
 def update_landmark(mean, cov, z, pose, Qt):
     r"""EKF update of one landmark's Gaussian, and the log-likelihood (Table 13.1, lines 12-19).
 

@@ -1,5 +1,18 @@
-# Mistake: the innovation covariance leaves out the measurement noise (Q = H Sigma H^T).
-# Class: which covariance is used
+# ruff: noqa: F841, E501 -- a student mistake leaves a variable unused; lines as the student wrote them
+"""The innovation covariance leaves out the measurement noise (Q = H Sigma H^T).
+
+Which covariance is used.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_covariance
+from solutions.fastslam import _inv2, _last_dim, _range_bearing, _range_bearing_jacobian
+
+
 def update_landmark(mean, cov, z, pose, Qt):
     r"""EKF update of one landmark's Gaussian, and the log-likelihood (Table 13.1, lines 12-19).
 

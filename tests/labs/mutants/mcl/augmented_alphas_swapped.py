@@ -1,5 +1,27 @@
-# Mistake: alpha_slow and alpha_fast are swapped.
-# Class: self-consistency with oracle values (running averages)
+"""Alpha_slow and alpha_fast are swapped.
+
+Self-consistency with oracle values (running averages).
+
+class: self-consistency
+"""
+
+import numpy as np
+
+from robolab.validation import as_poses, check_positive
+from solutions.mcl import (
+    _check_rng,
+    _params,
+    _scan_arrays,
+    _used_beams,
+    _weights,
+    init_uniform,
+    likelihood_field_model,
+    low_variance_resample,
+    normalize_log_weights,
+    sample_motion_model_odometry,
+)
+
+
 def augmented_mcl_step(
     particles, weights, odom_prev, odom_now, scan, field, params, rng, grid, w_slow, w_fast
 ):

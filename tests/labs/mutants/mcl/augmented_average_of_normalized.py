@@ -1,5 +1,28 @@
-# Mistake: w_avg is the mean of the normalized weights, always 1 / N.
-# Class: self-consistency with oracle values (running averages)
+# ruff: noqa: F841, E501 -- a student mistake leaves a variable unused; lines as the student wrote them
+"""W_avg is the mean of the normalized weights, always 1 / N.
+
+Self-consistency with oracle values (running averages).
+
+class: self-consistency
+"""
+
+import numpy as np
+
+from robolab.validation import as_poses, check_positive
+from solutions.mcl import (
+    _check_rng,
+    _params,
+    _scan_arrays,
+    _used_beams,
+    _weights,
+    init_uniform,
+    likelihood_field_model,
+    low_variance_resample,
+    normalize_log_weights,
+    sample_motion_model_odometry,
+)
+
+
 def augmented_mcl_step(
     particles, weights, odom_prev, odom_now, scan, field, params, rng, grid, w_slow, w_fast
 ):

@@ -1,6 +1,28 @@
-# Mistake: the filters start from w_slow = w_fast = 0 literally, so the first steps inject no particles
-#   at all.
-# Class: self-consistency with oracle values (running averages)
+"""The filters start from w_slow = w_fast = 0 literally, so the first steps inject no particles at
+all.
+
+Self-consistency with oracle values (running averages).
+
+class: self-consistency
+"""
+
+import numpy as np
+
+from robolab.validation import as_poses, check_positive
+from solutions.mcl import (
+    _check_rng,
+    _params,
+    _scan_arrays,
+    _used_beams,
+    _weights,
+    init_uniform,
+    likelihood_field_model,
+    low_variance_resample,
+    normalize_log_weights,
+    sample_motion_model_odometry,
+)
+
+
 def augmented_mcl_step(
     particles, weights, odom_prev, odom_now, scan, field, params, rng, grid, w_slow, w_fast
 ):

@@ -1,5 +1,27 @@
-# Mistake: the injection probability uses w_slow / w_fast instead of w_fast / w_slow.
-# Class: self-consistency with oracle values (running averages)
+"""The injection probability uses w_slow / w_fast instead of w_fast / w_slow.
+
+Self-consistency with oracle values (running averages).
+
+class: self-consistency
+"""
+
+import numpy as np
+
+from robolab.validation import as_poses, check_positive
+from solutions.mcl import (
+    _check_rng,
+    _params,
+    _scan_arrays,
+    _used_beams,
+    _weights,
+    init_uniform,
+    likelihood_field_model,
+    low_variance_resample,
+    normalize_log_weights,
+    sample_motion_model_odometry,
+)
+
+
 def augmented_mcl_step(
     particles, weights, odom_prev, odom_now, scan, field, params, rng, grid, w_slow, w_fast
 ):

@@ -1,5 +1,18 @@
-# Mistake: a map without obstacles gets distance 0 everywhere instead of max_dist.
-# Class: empty or partially known maps
+"""A map without obstacles gets distance 0 everywhere instead of max_dist.
+
+Empty or partially known maps.
+
+class: empty-map
+"""
+
+import numpy as np
+from scipy import ndimage
+
+from robolab.maps import OccupancyGrid
+from robolab.validation import check_positive
+from solutions.mcl import _gaussian
+
+
 def likelihood_field(grid, sigma_hit, max_dist):
     r"""The likelihood field of a map: distance to the nearest obstacle, precomputed per cell.
 

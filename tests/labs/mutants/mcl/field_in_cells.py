@@ -1,5 +1,18 @@
-# Mistake: the distance transform is left in cells, not converted to metres.
-# Class: units
+"""The distance transform is left in cells, not converted to metres.
+
+Units.
+
+class: formula
+"""
+
+import numpy as np
+from scipy import ndimage
+
+from robolab.maps import OccupancyGrid
+from robolab.validation import check_positive
+from solutions.mcl import _gaussian
+
+
 def likelihood_field(grid, sigma_hit, max_dist):
     r"""The likelihood field of a map: distance to the nearest obstacle, precomputed per cell.
 

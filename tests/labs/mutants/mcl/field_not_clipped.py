@@ -1,5 +1,18 @@
-# Mistake: distances are not clipped at max_dist.
-# Class: boundary values of a validity interval
+"""Distances are not clipped at max_dist.
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import numpy as np
+from scipy import ndimage
+
+from robolab.maps import OccupancyGrid
+from robolab.validation import check_positive
+from solutions.mcl import _gaussian
+
+
 def likelihood_field(grid, sigma_hit, max_dist):
     r"""The likelihood field of a map: distance to the nearest obstacle, precomputed per cell.
 

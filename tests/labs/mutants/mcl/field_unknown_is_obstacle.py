@@ -1,5 +1,18 @@
-# Mistake: unknown cells count as obstacles in the distance transform.
-# Class: empty or partially known maps
+"""Unknown cells count as obstacles in the distance transform.
+
+Empty or partially known maps.
+
+class: empty-map
+"""
+
+import numpy as np
+from scipy import ndimage
+
+from robolab.maps import OccupancyGrid
+from robolab.validation import check_positive
+from solutions.mcl import _gaussian
+
+
 def likelihood_field(grid, sigma_hit, max_dist):
     r"""The likelihood field of a map: distance to the nearest obstacle, precomputed per cell.
 

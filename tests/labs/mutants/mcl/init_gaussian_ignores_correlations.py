@@ -1,6 +1,18 @@
-# Mistake: only the diagonal of the covariance is used (independent components), the correlations are
-#   lost.
-# Class: noise model: covariance, not per-axis variances
+# ruff: noqa: F841, E501 -- a student mistake leaves a variable unused; lines as the student wrote them
+"""Only the diagonal of the covariance is used (independent components), the correlations are lost.
+
+Noise model: covariance, not per-axis variances.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array
+from solutions.mcl import _check_rng, _count
+
+
 def init_gaussian(pose, cov, n, rng):
     r"""Particles drawn from a Gaussian around a known pose (position tracking).
 

@@ -1,5 +1,16 @@
-# Mistake: the sampled headings are not wrapped to [-pi, pi).
-# Class: angle wrapping far from 0 and near +-pi
+"""The sampled headings are not wrapped to [-pi, pi).
+
+Angle wrapping far from 0 and near +-pi.
+
+class: angle-wrap
+"""
+
+import numpy as np
+
+from robolab.validation import as_array
+from solutions.mcl import _check_rng, _count
+
+
 def init_gaussian(pose, cov, n, rng):
     r"""Particles drawn from a Gaussian around a known pose (position tracking).
 

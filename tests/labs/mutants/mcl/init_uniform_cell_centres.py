@@ -1,5 +1,17 @@
-# Mistake: every particle sits at the centre of its free cell instead of uniformly inside it.
-# Class: which distribution is sampled (uniform over the free space)
+"""Every particle sits at the centre of its free cell instead of uniformly inside it.
+
+Which distribution is sampled (uniform over the free space).
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.maps import OccupancyGrid
+from solutions.mcl import _check_rng, _count
+
+
 def init_uniform(grid, n, rng):
     r"""Particles drawn uniformly over the free space of a map (global localization).
 

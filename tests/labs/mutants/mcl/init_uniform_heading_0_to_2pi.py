@@ -1,5 +1,16 @@
-# Mistake: headings drawn in [0, 2 pi) and not wrapped to [-pi, pi).
-# Class: angle wrapping far from 0 and near +-pi
+"""Headings drawn in [0, 2 pi) and not wrapped to [-pi, pi).
+
+Angle wrapping far from 0 and near +-pi.
+
+class: angle-wrap
+"""
+
+import numpy as np
+
+from robolab.maps import OccupancyGrid
+from solutions.mcl import _check_rng, _count
+
+
 def init_uniform(grid, n, rng):
     r"""Particles drawn uniformly over the free space of a map (global localization).
 

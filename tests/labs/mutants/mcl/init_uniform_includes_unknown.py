@@ -1,5 +1,17 @@
-# Mistake: particles are drawn over every cell that is not occupied, unknown cells included.
-# Class: empty or partially known maps
+"""Particles are drawn over every cell that is not occupied, unknown cells included.
+
+Empty or partially known maps.
+
+class: empty-map
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from robolab.maps import OccupancyGrid
+from solutions.mcl import _check_rng, _count
+
+
 def init_uniform(grid, n, rng):
     r"""Particles drawn uniformly over the free space of a map (global localization).
 

@@ -1,5 +1,15 @@
-# Mistake: the bound is rounded down instead of up.
-# Class: boundary values of a validity interval
+"""The bound is rounded down instead of up.
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.validation import check_positive
+
+
 def kld_sample_size(k, epsilon, z):
     r"""Particles needed for KLD-sampling: the Wilson-Hilferty bound of Table 8.4.
 

@@ -1,5 +1,15 @@
-# Mistake: no special case for k = 1: one occupied bin asks for ceil(1 / (2 eps) ...) particles, not 1.
-# Class: boundary values of a validity interval
+"""No special case for k = 1: one occupied bin asks for ceil(1 / (2 eps) ...) particles, not 1.
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.validation import check_positive
+
+
 def kld_sample_size(k, epsilon, z):
     r"""Particles needed for KLD-sampling: the Wilson-Hilferty bound of Table 8.4.
 

@@ -1,5 +1,27 @@
-# Mistake: resample_interval is ignored: every update resamples.
-# Class: resampling on an interval
+"""Resample_interval is ignored: every update resamples.
+
+Resampling on an interval.
+
+class: incoming-weights
+"""
+
+import math
+
+import numpy as np
+
+from robolab.geometry import angle_diff
+from robolab.validation import as_array, as_poses, check_positive
+from solutions.mcl import (
+    _check_rng,
+    _params,
+    _weights,
+    likelihood_field_model,
+    low_variance_resample,
+    normalize_log_weights,
+    sample_motion_model_odometry,
+)
+
+
 def mcl_step(particles, weights, odom_prev, odom_now, scan, field, params, rng):
     r"""One step of Monte Carlo localization: predict, weight, resample (Table 8.2, AMCL).
 

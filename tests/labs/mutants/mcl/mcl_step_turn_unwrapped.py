@@ -1,5 +1,26 @@
-# Mistake: the rotation since the last update is not wrapped: 3.1 -> -3.1 counts as a 6.2 rad turn.
-# Class: angle wrapping far from 0 and near +-pi
+"""The rotation since the last update is not wrapped: 3.1 -> -3.1 counts as a 6.2 rad turn.
+
+Angle wrapping far from 0 and near +-pi.
+
+class: angle-wrap
+"""
+
+import math
+
+import numpy as np
+
+from robolab.validation import as_array, as_poses, check_positive
+from solutions.mcl import (
+    _check_rng,
+    _params,
+    _weights,
+    likelihood_field_model,
+    low_variance_resample,
+    normalize_log_weights,
+    sample_motion_model_odometry,
+)
+
+
 def mcl_step(particles, weights, odom_prev, odom_now, scan, field, params, rng):
     r"""One step of Monte Carlo localization: predict, weight, resample (Table 8.2, AMCL).
 

@@ -1,5 +1,27 @@
-# Mistake: the beams start at the particle's pose: params['laser_pose'] is ignored.
-# Class: frames
+# ruff: noqa: F841, E501 -- a student mistake leaves a variable unused; lines as the student wrote them
+"""The beams start at the particle's pose: params['laser_pose'] is ignored.
+
+Frames.
+
+class: formula
+"""
+
+import math
+
+import numpy as np
+
+from robolab.validation import as_array, as_poses
+from solutions.mcl import (
+    _field_arrays,
+    _gaussian,
+    _log_gaussian,
+    _mixture,
+    _params,
+    _scan_arrays,
+    _used_beams,
+)
+
+
 def likelihood_field_model(scan, particles, field, params):
     r"""Log-likelihood :math:`\log p(z \mid x, m)` of a scan for every particle: Table 6.3.
 

@@ -1,5 +1,27 @@
-# Mistake: a reading equal to range_max is scored as a return (r <= range_max).
-# Class: boundary values of a validity interval
+"""A reading equal to range_max is scored as a return (r <= range_max).
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import math
+
+import numpy as np
+
+from robolab.geometry import compose
+from robolab.validation import as_array, as_poses
+from solutions.mcl import (
+    _field_arrays,
+    _gaussian,
+    _log_gaussian,
+    _mixture,
+    _params,
+    _scan_arrays,
+    _used_beams,
+)
+
+
 def likelihood_field_model(scan, particles, field, params):
     r"""Log-likelihood :math:`\log p(z \mid x, m)` of a scan for every particle: Table 6.3.
 

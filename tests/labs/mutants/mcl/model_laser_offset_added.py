@@ -1,5 +1,26 @@
-# Mistake: the laser pose is added component-wise instead of composed with the particle's pose.
-# Class: frames: pose composition
+"""The laser pose is added component-wise instead of composed with the particle's pose.
+
+Frames: pose composition.
+
+class: formula
+"""
+
+import math
+
+import numpy as np
+
+from robolab.validation import as_array, as_poses
+from solutions.mcl import (
+    _field_arrays,
+    _gaussian,
+    _log_gaussian,
+    _mixture,
+    _params,
+    _scan_arrays,
+    _used_beams,
+)
+
+
 def likelihood_field_model(scan, particles, field, params):
     r"""Log-likelihood :math:`\log p(z \mid x, m)` of a scan for every particle: Table 6.3.
 

@@ -1,6 +1,21 @@
-# Mistake: with z_rand = 0 the log is taken of the Gaussian itself, which underflows to log(0) = -inf
-#   far from obstacles.
-# Class: numerics of the log form (a mixture component is zero)
+# ruff: noqa: F841, E501 -- a student mistake leaves a variable unused; lines as the student wrote them
+"""With z_rand = 0 the log is taken of the Gaussian itself, which underflows to log(0) = -inf far
+from obstacles.
+
+Numerics of the log form (a mixture component is zero).
+
+class: underflow
+"""
+
+import math
+
+import numpy as np
+
+from robolab.geometry import compose
+from robolab.validation import as_array, as_poses
+from solutions.mcl import _field_arrays, _gaussian, _mixture, _params, _scan_arrays, _used_beams
+
+
 def likelihood_field_model(scan, particles, field, params):
     r"""Log-likelihood :math:`\log p(z \mid x, m)` of a scan for every particle: Table 6.3.
 

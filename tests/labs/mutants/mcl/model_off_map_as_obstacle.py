@@ -1,6 +1,27 @@
-# Mistake: an endpoint off the map is scored as if it were on an obstacle (d = 0) instead of d =
-#   max_dist.
-# Class: empty or partially known maps (endpoints off the map)
+"""An endpoint off the map is scored as if it were on an obstacle (d = 0) instead of d = max_dist.
+
+Empty or partially known maps (endpoints off the map).
+
+class: empty-map
+"""
+
+import math
+
+import numpy as np
+
+from robolab.geometry import compose
+from robolab.validation import as_array, as_poses
+from solutions.mcl import (
+    _field_arrays,
+    _gaussian,
+    _log_gaussian,
+    _mixture,
+    _params,
+    _scan_arrays,
+    _used_beams,
+)
+
+
 def likelihood_field_model(scan, particles, field, params):
     r"""Log-likelihood :math:`\log p(z \mid x, m)` of a scan for every particle: Table 6.3.
 

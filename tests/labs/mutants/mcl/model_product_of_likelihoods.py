@@ -1,6 +1,28 @@
-# Mistake: the beam likelihoods are multiplied and the log taken at the end: the product underflows for
-#   many beams.
-# Class: numerics of the log form
+"""The beam likelihoods are multiplied and the log taken at the end: the product underflows for
+many beams.
+
+Numerics of the log form.
+
+class: underflow
+"""
+
+import math
+
+import numpy as np
+
+from robolab.geometry import compose
+from robolab.validation import as_array, as_poses
+from solutions.mcl import (
+    _field_arrays,
+    _gaussian,
+    _log_gaussian,
+    _mixture,
+    _params,
+    _scan_arrays,
+    _used_beams,
+)
+
+
 def likelihood_field_model(scan, particles, field, params):
     r"""Log-likelihood :math:`\log p(z \mid x, m)` of a scan for every particle: Table 6.3.
 

@@ -1,5 +1,19 @@
-# Mistake: no in-place guard: rot1 = atan2 of a few millimetres of noise when the robot only turns.
-# Class: boundary values of a validity interval (translations below 0.01 m)
+"""No in-place guard: rot1 = atan2 of a few millimetres of noise when the robot only turns.
+
+Boundary values of a validity interval (translations below 0.01 m).
+
+class: boundary
+"""
+
+import math
+
+import numpy as np
+
+from robolab.geometry import angle_diff, wrap_angle
+from robolab.validation import as_array, as_poses
+from solutions.mcl import _check_rng
+
+
 def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, corrected=False):
     r"""Move every particle by the odometry, with noise: Probabilistic Robotics, Table 5.6.
 

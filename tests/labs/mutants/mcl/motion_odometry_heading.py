@@ -1,5 +1,17 @@
-# Mistake: the motion is applied with the odometry's own heading instead of each particle's heading.
-# Class: frames: odometry frame against the particle's frame
+"""The motion is applied with the odometry's own heading instead of each particle's heading.
+
+Frames: odometry frame against the particle's frame.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import angle_diff, wrap_angle
+from robolab.validation import as_array, as_poses
+from solutions.mcl import _check_rng, _odometry_deltas
+
+
 def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, corrected=False):
     r"""Move every particle by the odometry, with noise: Probabilistic Robotics, Table 5.6.
 

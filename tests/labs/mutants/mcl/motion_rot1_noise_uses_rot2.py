@@ -1,5 +1,17 @@
-# Mistake: the noise of rot1 is scaled by rot2 (the handout's typo) instead of rot1.
-# Class: noise model (which delta scales which noise)
+"""The noise of rot1 is scaled by rot2 (the handout's typo) instead of rot1.
+
+Noise model (which delta scales which noise).
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import angle_diff, wrap_angle
+from robolab.validation import as_array, as_poses
+from solutions.mcl import _check_rng, _odometry_deltas
+
+
 def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, corrected=False):
     r"""Move every particle by the odometry, with noise: Probabilistic Robotics, Table 5.6.
 

@@ -1,6 +1,20 @@
-# Mistake: rot1 = atan2(dy, dx) - theta is not wrapped: near +-pi it is off by 2 pi and the noise it
-#   scales explodes.
-# Class: angle wrapping far from 0 and near +-pi (odometry deltas)
+"""Rot1 = atan2(dy, dx) - theta is not wrapped: near +-pi it is off by 2 pi and the noise it scales
+explodes.
+
+Angle wrapping far from 0 and near +-pi (odometry deltas).
+
+class: angle-wrap
+"""
+
+import math
+
+import numpy as np
+
+from robolab.geometry import angle_diff, wrap_angle
+from robolab.validation import as_array, as_poses
+from solutions.mcl import IN_PLACE_TRANSLATION, _check_rng
+
+
 def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, corrected=False):
     r"""Move every particle by the odometry, with noise: Probabilistic Robotics, Table 5.6.
 

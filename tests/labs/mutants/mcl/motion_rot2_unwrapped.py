@@ -1,6 +1,20 @@
-# Mistake: rot2 = theta' - theta - rot1 is not wrapped: a turn through +-pi looks like a 2 pi turn in
-#   the noise.
-# Class: angle wrapping far from 0 and near +-pi (odometry deltas)
+"""Rot2 = theta' - theta - rot1 is not wrapped: a turn through +-pi looks like a 2 pi turn in the
+noise.
+
+Angle wrapping far from 0 and near +-pi (odometry deltas).
+
+class: angle-wrap
+"""
+
+import math
+
+import numpy as np
+
+from robolab.geometry import angle_diff, wrap_angle
+from robolab.validation import as_array, as_poses
+from solutions.mcl import IN_PLACE_TRANSLATION, _check_rng
+
+
 def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, corrected=False):
     r"""Move every particle by the odometry, with noise: Probabilistic Robotics, Table 5.6.
 

@@ -1,5 +1,17 @@
-# Mistake: one noise draw shared by every particle instead of one per particle.
-# Class: vectorization over particles (broadcasting one draw)
+"""One noise draw shared by every particle instead of one per particle.
+
+Vectorization over particles (broadcasting one draw).
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import angle_diff, wrap_angle
+from robolab.validation import as_array, as_poses
+from solutions.mcl import _check_rng, _odometry_deltas
+
+
 def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, corrected=False):
     r"""Move every particle by the odometry, with noise: Probabilistic Robotics, Table 5.6.
 

@@ -1,5 +1,17 @@
-# Mistake: Table 5.6's variances alpha1 rot^2 + alpha2 trans^2 are used as standard deviations.
-# Class: noise model: variance against standard deviation
+"""Table 5.6's variances alpha1 rot^2 + alpha2 trans^2 are used as standard deviations.
+
+Noise model: variance against standard deviation.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import angle_diff, wrap_angle
+from robolab.validation import as_array, as_poses
+from solutions.mcl import _check_rng, _odometry_deltas
+
+
 def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, corrected=False):
     r"""Move every particle by the odometry, with noise: Probabilistic Robotics, Table 5.6.
 

@@ -1,5 +1,15 @@
-# Mistake: every weight vanishing (all log-weights -inf) is not refused: NaN weights are returned.
-# Class: degenerate weight sets
+"""Every weight vanishing (all log-weights -inf) is not refused: NaN weights are returned.
+
+Degenerate weight sets.
+
+class: degenerate-weights
+"""
+
+import numpy as np
+
+from robolab.validation import as_array
+
+
 def normalize_log_weights(logw):
     r"""Normalized weights from log-weights, without underflow.
 

@@ -1,5 +1,15 @@
-# Mistake: exp of the raw log-weights: every weight underflows to 0 and 0 / 0 = NaN.
-# Class: numerics of the log form
+"""Exp of the raw log-weights: every weight underflows to 0 and 0 / 0 = NaN.
+
+Numerics of the log form.
+
+class: underflow
+"""
+
+import numpy as np
+
+from robolab.validation import as_array
+
+
 def normalize_log_weights(logw):
     r"""Normalized weights from log-weights, without underflow.
 

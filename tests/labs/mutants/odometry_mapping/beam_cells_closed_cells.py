@@ -1,6 +1,17 @@
-# Mistake: cells treated as closed squares: a beam crossing a column at an integer row also gets the
-#   row above (extra corner cells).
-# Class: boundary values of a validity interval (half-open cells)
+# ruff: noqa: F841, E501 -- a student mistake leaves a variable unused; lines as the student wrote them
+"""Cells treated as closed squares: a beam crossing a column at an integer row also gets the row
+above (extra corner cells).
+
+Boundary values of a validity interval (half-open cells).
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.validation import as_array
+
+
 def beam_cells(start_cell, end_cell):
     r"""Every grid cell a straight beam touches (exact supercover), for many beams at once.
 

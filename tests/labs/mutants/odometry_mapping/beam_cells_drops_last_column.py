@@ -1,6 +1,16 @@
-# Mistake: off by one in the column count: the columns from floor(start) up to, but not including,
-#   floor(end).
-# Class: boundary values of a validity interval (the end cell is included)
+"""Off by one in the column count: the columns from floor(start) up to, but not including,
+floor(end).
+
+Boundary values of a validity interval (the end cell is included).
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.validation import as_array
+
+
 def beam_cells(start_cell, end_cell):
     r"""Every grid cell a straight beam touches (exact supercover), for many beams at once.
 

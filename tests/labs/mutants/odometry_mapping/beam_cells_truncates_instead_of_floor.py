@@ -1,5 +1,15 @@
-# Mistake: cell columns by astype(int), which truncates towards zero: wrong for negative coordinates.
-# Class: boundary values of a validity interval (cells at negative coordinates)
+"""Cell columns by astype(int), which truncates towards zero: wrong for negative coordinates.
+
+Boundary values of a validity interval (cells at negative coordinates).
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.validation import as_array
+
+
 def beam_cells(start_cell, end_cell):
     r"""Every grid cell a straight beam touches (exact supercover), for many beams at once.
 

@@ -1,5 +1,16 @@
-# Mistake: a value exactly at the threshold is clipped to free (m > tau instead of m >= tau).
-# Class: boundary values of a validity interval
+"""A value exactly at the threshold is clipped to free (m > tau instead of m >= tau).
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.maps import UNKNOWN
+from robolab.validation import as_array, check_positive
+
+
 def clip_map(occupancy, threshold=0.5):
     r"""Clip an occupancy map to 0 / 1 at ``threshold`` (the seed's clipping); unknown stays -1.
 

@@ -1,5 +1,16 @@
-# Mistake: unknown cells (-1) are clipped like values below the threshold and become free (0).
-# Class: empty or partially known maps
+"""Unknown cells (-1) are clipped like values below the threshold and become free (0).
+
+Empty or partially known maps.
+
+class: empty-map
+"""
+
+import numpy as np
+
+from robolab.maps import UNKNOWN
+from robolab.validation import as_array, check_positive
+
+
 def clip_map(occupancy, threshold=0.5):
     r"""Clip an occupancy map to 0 / 1 at ``threshold`` (the seed's clipping); unknown stays -1.
 

@@ -1,6 +1,23 @@
-# Mistake: visits added with fancy-index += 1, which counts a cell once per scan although several beams
-#   cross it.
-# Class: repeated indices in a vectorized update
+"""Visits added with fancy-index += 1, which counts a cell once per scan although several beams
+cross it.
+
+Repeated indices in a vectorized update.
+
+class: formula
+"""
+
+import numpy as np
+
+from solutions.odometry_mapping import (
+    _beam_ends,
+    _check_grid,
+    _layer,
+    _pose,
+    _scan_arrays,
+    beam_cells,
+)
+
+
 def counting_map_update(hits, visits, scan, pose, grid):
     r"""Integrate one scan into the counting map (seed 004, the simple counting algorithm).
 

@@ -1,6 +1,22 @@
-# Mistake: no-return beams (inf, r >= range_max) are ignored instead of counted as visits up to
-#   range_max.
-# Class: inputs the notebook describes: no-return beams are free-space evidence
+"""No-return beams (inf, r >= range_max) are ignored instead of counted as visits up to range_max.
+
+Inputs the notebook describes: no-return beams are free-space evidence.
+
+class: boundary
+"""
+
+import numpy as np
+
+from solutions.odometry_mapping import (
+    _beam_ends,
+    _check_grid,
+    _layer,
+    _pose,
+    _scan_arrays,
+    beam_cells,
+)
+
+
 def counting_map_update(hits, visits, scan, pose, grid):
     r"""Integrate one scan into the counting map (seed 004, the simple counting algorithm).
 

@@ -1,5 +1,22 @@
-# Mistake: the end cell of every beam gets a hit, also for max-range (no-return) readings.
-# Class: boundary values of a validity interval
+"""The end cell of every beam gets a hit, also for max-range (no-return) readings.
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import numpy as np
+
+from solutions.odometry_mapping import (
+    _beam_ends,
+    _check_grid,
+    _layer,
+    _pose,
+    _scan_arrays,
+    beam_cells,
+)
+
+
 def counting_map_update(hits, visits, scan, pose, grid):
     r"""Integrate one scan into the counting map (seed 004, the simple counting algorithm).
 

@@ -1,6 +1,16 @@
-# Mistake: no copy of the counts: the += updates modify the caller's hits and visits arrays and return
-#   them.
-# Class: in-place modification and aliasing
+"""No copy of the counts: the += updates modify the caller's hits and visits arrays and return
+them.
+
+In-place modification and aliasing.
+
+class: aliasing
+"""
+
+import numpy as np
+
+from solutions.odometry_mapping import _beam_ends, _check_grid, _pose, _scan_arrays, beam_cells
+
+
 def counting_map_update(hits, visits, scan, pose, grid):
     r"""Integrate one scan into the counting map (seed 004, the simple counting algorithm).
 

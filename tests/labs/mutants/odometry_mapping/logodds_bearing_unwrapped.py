@@ -1,5 +1,23 @@
-# Mistake: the bearing of a cell, atan2(...) - theta, is not wrapped before the nearest-beam search.
-# Class: angle wrapping (bearings in an inverse sensor model at |theta| > 1 rad)
+"""The bearing of a cell, atan2(...) - theta, is not wrapped before the nearest-beam search.
+
+Angle wrapping (bearings in an inverse sensor model at |theta| > 1 rad).
+
+class: angle-wrap
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from solutions.odometry_mapping import (
+    _beam_kinds,
+    _check_grid,
+    _layer,
+    _pose,
+    _scan_arrays,
+    _sensor_model_params,
+)
+
+
 def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     r"""One step of occupancy grid mapping in log-odds form (Probabilistic Robotics, Table 9.1).
 

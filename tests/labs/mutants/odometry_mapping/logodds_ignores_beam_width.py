@@ -1,6 +1,25 @@
-# Mistake: the beam width test |phi - theta_k| <= beta / 2 is left out: cells between sparse beams get
-#   the nearest beam's evidence.
-# Class: which cells are in the perceptual field
+# ruff: noqa: F841, E501 -- a student mistake leaves a variable unused; lines as the student wrote them
+"""The beam width test |phi - theta_k| <= beta / 2 is left out: cells between sparse beams get the
+nearest beam's evidence.
+
+Which cells are in the perceptual field.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from solutions.odometry_mapping import (
+    _beam_kinds,
+    _check_grid,
+    _layer,
+    _pose,
+    _scan_arrays,
+    _sensor_model_params,
+)
+
+
 def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     r"""One step of occupancy grid mapping in log-odds form (Probabilistic Robotics, Table 9.1).
 

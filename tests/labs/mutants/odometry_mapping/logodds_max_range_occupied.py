@@ -1,6 +1,25 @@
-# Mistake: a max-range reading marks the cells at z_max occupied (the z_k < z_max condition of Table
-#   9.2 is missing).
-# Class: boundary values of a validity interval
+# ruff: noqa: F841, E501 -- a student mistake leaves a variable unused; lines as the student wrote them
+"""A max-range reading marks the cells at z_max occupied (the z_k < z_max condition of Table 9.2 is
+missing).
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from solutions.odometry_mapping import (
+    _beam_kinds,
+    _check_grid,
+    _layer,
+    _pose,
+    _scan_arrays,
+    _sensor_model_params,
+)
+
+
 def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     r"""One step of occupancy grid mapping in log-odds form (Probabilistic Robotics, Table 9.1).
 

@@ -1,5 +1,22 @@
-# Mistake: no copy: the update adds into the caller's log-odds array and returns it.
-# Class: in-place modification and aliasing
+"""No copy: the update adds into the caller's log-odds array and returns it.
+
+In-place modification and aliasing.
+
+class: aliasing
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from solutions.odometry_mapping import (
+    _beam_kinds,
+    _check_grid,
+    _pose,
+    _scan_arrays,
+    _sensor_model_params,
+)
+
+
 def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     r"""One step of occupancy grid mapping in log-odds form (Probabilistic Robotics, Table 9.1).
 

@@ -1,6 +1,24 @@
-# Mistake: the prior l_0 is not subtracted (l + inverse_sensor_model instead of l +
-#   inverse_sensor_model - l_0).
-# Class: numerics of the log form
+"""The prior l_0 is not subtracted (l + inverse_sensor_model instead of l + inverse_sensor_model -
+l_0).
+
+Numerics of the log form.
+
+class: underflow
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from solutions.odometry_mapping import (
+    _beam_kinds,
+    _check_grid,
+    _layer,
+    _pose,
+    _scan_arrays,
+    _sensor_model_params,
+)
+
+
 def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     r"""One step of occupancy grid mapping in log-odds form (Probabilistic Robotics, Table 9.1).
 

@@ -1,5 +1,22 @@
-# Mistake: a zero reading with range_min = 0 is used as a hit at the laser (no r > 0 test).
-# Class: boundary values of a validity interval (a zero reading when the lower bound is zero)
+"""A zero reading with range_min = 0 is used as a hit at the laser (no r > 0 test).
+
+Boundary values of a validity interval (a zero reading when the lower bound is zero).
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.geometry import wrap_angle
+from solutions.odometry_mapping import (
+    _check_grid,
+    _layer,
+    _pose,
+    _scan_arrays,
+    _sensor_model_params,
+)
+
+
 def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     r"""One step of occupancy grid mapping in log-odds form (Probabilistic Robotics, Table 9.1).
 

@@ -1,5 +1,16 @@
-# Mistake: no refusal of hits > visits (occupancy above 1 is returned silently).
-# Class: inputs the notebook says to refuse
+"""No refusal of hits > visits (occupancy above 1 is returned silently).
+
+Inputs the notebook says to refuse.
+
+class: refusal
+"""
+
+import numpy as np
+
+from robolab.maps import UNKNOWN
+from robolab.validation import as_array
+
+
 def occupancy_from_counts(hits, visits):
     r"""The counting map: occupancy ``hits / visits``, unknown (-1) where no beam came.
 

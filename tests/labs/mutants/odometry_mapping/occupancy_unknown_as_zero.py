@@ -1,5 +1,15 @@
-# Mistake: cells no beam visited get 0 (free) instead of -1 (unknown).
-# Class: empty or partially known maps
+"""Cells no beam visited get 0 (free) instead of -1 (unknown).
+
+Empty or partially known maps.
+
+class: empty-map
+"""
+
+import numpy as np
+
+from robolab.validation import as_array
+
+
 def occupancy_from_counts(hits, visits):
     r"""The counting map: occupancy ``hits / visits``, unknown (-1) where no beam came.
 

@@ -1,5 +1,15 @@
-# Mistake: 1 - 1 / (1 + exp(l)) written literally: loses every digit for l << 0 (cancellation).
-# Class: numerics of the log form
+"""1 - 1 / (1 + exp(l)) written literally: loses every digit for l << 0 (cancellation).
+
+Numerics of the log form.
+
+class: underflow
+"""
+
+import numpy as np
+
+from robolab.validation import as_array
+
+
 def logodds_to_probability(logodds):
     r"""Occupancy probability from log-odds (Probabilistic Robotics, Table 9.1, last line).
 

@@ -1,5 +1,15 @@
-# Mistake: exp(l) / (1 + exp(l)): inf / inf = NaN for large l.
-# Class: numerics of the log form
+"""Exp(l) / (1 + exp(l)): inf / inf = NaN for large l.
+
+Numerics of the log form.
+
+class: underflow
+"""
+
+import numpy as np
+
+from robolab.validation import as_array
+
+
 def logodds_to_probability(logodds):
     r"""Occupancy probability from log-odds (Probabilistic Robotics, Table 9.1, last line).
 

@@ -1,5 +1,16 @@
-# Mistake: a reading equal to range_min is dropped (r > range_min instead of r >= range_min).
-# Class: boundary values of a validity interval
+"""A reading equal to range_min is dropped (r > range_min instead of r >= range_min).
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.geometry import compose, transform_points
+from solutions.odometry_mapping import _pose, _scan_arrays
+
+
 def scan_endpoints(scan, pose, laser_offset):
     r"""World coordinates of the endpoints of a scan's hit beams.
 

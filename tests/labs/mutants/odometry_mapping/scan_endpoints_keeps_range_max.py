@@ -1,5 +1,16 @@
-# Mistake: a reading equal to range_max is kept as a hit (r <= range_max instead of r < range_max).
-# Class: boundary values of a validity interval
+"""A reading equal to range_max is kept as a hit (r <= range_max instead of r < range_max).
+
+Boundary values of a validity interval.
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.geometry import compose, transform_points
+from solutions.odometry_mapping import _pose, _scan_arrays
+
+
 def scan_endpoints(scan, pose, laser_offset):
     r"""World coordinates of the endpoints of a scan's hit beams.
 

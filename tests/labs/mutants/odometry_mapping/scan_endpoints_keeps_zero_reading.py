@@ -1,5 +1,16 @@
-# Mistake: a zero reading is kept as a hit at the laser when range_min is 0 (no r > 0 test).
-# Class: boundary values of a validity interval (a zero reading when the lower bound is zero)
+"""A zero reading is kept as a hit at the laser when range_min is 0 (no r > 0 test).
+
+Boundary values of a validity interval (a zero reading when the lower bound is zero).
+
+class: boundary
+"""
+
+import numpy as np
+
+from robolab.geometry import compose, transform_points
+from solutions.odometry_mapping import _pose, _scan_arrays
+
+
 def scan_endpoints(scan, pose, laser_offset):
     r"""World coordinates of the endpoints of a scan's hit beams.
 

@@ -1,6 +1,17 @@
-# Mistake: the laser offset is added to the pose component-wise instead of composed (not rotated by the
-#   robot's heading).
-# Class: frames: pose composition
+"""The laser offset is added to the pose component-wise instead of composed (not rotated by the
+robot's heading).
+
+Frames: pose composition.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.geometry import transform_points
+from solutions.odometry_mapping import _beam_kinds, _pose, _scan_arrays
+
+
 def scan_endpoints(scan, pose, laser_offset):
     r"""World coordinates of the endpoints of a scan's hit beams.
 
