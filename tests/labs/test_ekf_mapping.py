@@ -29,6 +29,7 @@ from robolab.raycast import cast_rays
 
 ANGLES = np.deg2rad(10.0 * np.arange(36))  # the seed's 36 beams
 ZMAX = 20.0
+requires = pytest.mark.requires
 DATA = Path(__file__).resolve().parents[2] / "data" / "ekf_world.npz"
 
 
@@ -322,6 +323,9 @@ def test_inverse_sensor_model_matches_table_9_2(lab):
 
 
 @pytest.mark.grades("inverse_sensor_model", points=3)
+@requires(
+    "test_inverse_sensor_model_single_beam_classes", "test_inverse_sensor_model_matches_table_9_2"
+)
 def test_inverse_sensor_model_bad_input(lab):
     """A NaN range, a negative range or a scan that does not match the beam angles: ValueError."""
     scan = np.full(36, 5.0)
@@ -384,6 +388,7 @@ def test_update_map_leaves_unseen_cells(lab):
 
 
 @pytest.mark.grades("update_map", points=2)
+@requires("test_update_map_accumulates")
 def test_update_map_bad_input(lab):
     """NaN ranges raise ValueError."""
     with pytest.raises(ValueError):
@@ -479,6 +484,7 @@ def test_ekf_step_maps_from_the_predicted_pose(lab):
 
 
 @pytest.mark.grades("ekf_mapping_step", points=6)
+@requires("test_ekf_step_equals_hand_written_ekf", "test_ekf_step_maps_from_the_predicted_pose")
 def test_ekf_mapping_on_the_bundled_run(lab):
     """The first 25 s of the bundled 40 x 40 run: pose error and map agreement with the true world.
 
@@ -519,6 +525,7 @@ def test_ekf_mapping_on_the_bundled_run(lab):
 
 
 @pytest.mark.grades("ekf_mapping_step", points=2)
+@requires("test_ekf_step_equals_hand_written_ekf")
 def test_ekf_step_bad_input(lab):
     """A scan of the wrong length or with NaN ranges raises ValueError."""
     args = ((_X0, _P0, _Q, np.eye(36)), np.zeros((40, 40)), 1.0, 0.1)
@@ -546,11 +553,15 @@ def test_ekf_step_prediction_linearizes_at_the_previous_mean(lab):
     G = np.eye(3)
     G[0, 2], G[1, 2] = -v * np.sin(x0[2]) * dt, v * np.cos(x0[2]) * dt
     np.testing.assert_allclose(
-        _f(state), _g(x0, v, w, dt), atol=1e-5,
+        _f(state),
+        _g(x0, v, w, dt),
+        atol=1e-5,
         err_msg="R = 1e8 I: the state is the predicted mean g(u, mu) (speed 2, turn 3 rad/s, dt 0.5)",
     )
     np.testing.assert_allclose(
-        _f(cov), G @ p0 @ G.T + _Q, atol=1e-5,
+        _f(cov),
+        G @ p0 @ G.T + _Q,
+        atol=1e-5,
         err_msg="R = 1e8 I: the covariance is G P G^T + Q with G at the previous mean (heading 0.3)",
     )
 
@@ -566,7 +577,9 @@ def test_ekf_step_wraps_a_corrected_heading_near_pi(lab):
     )
     x0, cmd = np.array([20.0, 20.0, np.pi - 0.03]), (1.0, 0.1, 0.1)
     x, p, _, unwrapped = _ekf_by_hand(box, x0, _P0, _Q, np.eye(36), scan, cmd)
-    assert unwrapped[2] > np.pi, f"test self-check: the correction must cross pi, got {unwrapped[2]}"
+    assert unwrapped[2] > np.pi, (
+        f"test self-check: the correction must cross pi, got {unwrapped[2]}"
+    )
     state, cov, _ = lab.ekf_mapping_step(
         (x0.copy(), _P0.copy(), _Q.copy(), np.eye(36)), prior.copy(), cmd[0], cmd[1], scan, cmd[2]
     )
@@ -575,7 +588,9 @@ def test_ekf_step_wraps_a_corrected_heading_near_pi(lab):
         f"corrected heading {state[2]:.4f} rad (true {true[2]:.4f}): must be wrapped to [-pi, pi)"
     )
     np.testing.assert_allclose(
-        [*state[:2], wrap_angle(state[2] - x[2])], [*x[:2], 0.0], atol=0.03,
+        [*state[:2], wrap_angle(state[2] - x[2])],
+        [*x[:2], 0.0],
+        atol=0.03,
         err_msg="state after the correction against Table 3.3 by hand (heading compared modulo 2 pi; "
         "tolerance 0.03 for the free choice of Jacobian steps: beams end near the box's corners here)",
     )
@@ -590,7 +605,11 @@ def test_ekf_step_from_an_empty_map_corrects_in_the_new_map(lab):
     """
     _, _, scan = _box_scenario()
     state, cov, new_map = lab.ekf_mapping_step(
-        (_X0.copy(), _P0.copy(), _Q.copy(), np.eye(36)), np.zeros((40, 40)), *_CMD[:2], scan, _CMD[2]
+        (_X0.copy(), _P0.copy(), _Q.copy(), np.eye(36)),
+        np.zeros((40, 40)),
+        *_CMD[:2],
+        scan,
+        _CMD[2],
     )
     v, _, dt = _CMD
     G = np.eye(3)
@@ -619,6 +638,8 @@ def test_ekf_step_no_return_reads_as_max_range(lab):
     ]
     for name, a, b in zip(("state", "covariance", "map"), *results, strict=True):
         np.testing.assert_allclose(
-            _f(b), _f(a), atol=1e-9,
+            _f(b),
+            _f(a),
+            atol=1e-9,
             err_msg=f"{name}: readings inf, inf, 40 must count as max_range = 20",
         )

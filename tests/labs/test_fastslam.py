@@ -25,6 +25,7 @@ from scipy.stats import multivariate_normal
 
 from robolab.fiducials import FiducialRobot
 
+requires = pytest.mark.requires
 QT = np.diag([0.1**2, np.deg2rad(2.0) ** 2])
 
 
@@ -99,7 +100,9 @@ def test_init_particles_first_observation_has_nothing_seen(lab):
     np.testing.assert_allclose(_f(s["weights"]).sum(), 1.0, err_msg="weights must sum to 1")
     wrapped = lab.init_particles(3, 2, [1.0, 2.0, 4.0], init="first_observation")
     np.testing.assert_allclose(
-        _f(wrapped["poses"])[:, 2], 4.0 - 2 * np.pi, atol=1e-12,
+        _f(wrapped["poses"])[:, 2],
+        4.0 - 2 * np.pi,
+        atol=1e-12,
         err_msg="x0 heading 4.0 rad: the particles' headings are wrapped to [-pi, pi)",
     )
 
@@ -352,12 +355,22 @@ def test_fastslam_step_initializes_a_new_landmark_from_its_first_observation(lab
         [u[0] * dt * np.cos(poses[:, 2]), u[0] * dt * np.sin(poses[:, 2]), np.full(3, u[1] * dt)]
     )
     out = lab.fastslam_step(
-        state, u, [[r, phi, 1.0]], np.zeros((3, 3)), QT, np.random.default_rng(8), dt=dt,
+        state,
+        u,
+        [[r, phi, 1.0]],
+        np.zeros((3, 3)),
+        QT,
+        np.random.default_rng(8),
+        dt=dt,
         resample=False,
     )
-    expected = moved[:, :2] + r * np.stack([np.cos(moved[:, 2] + phi), np.sin(moved[:, 2] + phi)], -1)
+    expected = moved[:, :2] + r * np.stack(
+        [np.cos(moved[:, 2] + phi), np.sin(moved[:, 2] + phi)], -1
+    )
     np.testing.assert_allclose(
-        _f(out["means"])[:, 1], expected, atol=1e-9,
+        _f(out["means"])[:, 1],
+        expected,
+        atol=1e-9,
         err_msg="v = 1 m/s, omega = 0.5 rad/s, dt = 0.2, Q = 0: the first observation is placed from "
         "the pose after the motion update",
     )
@@ -399,12 +412,22 @@ def test_fastslam_step_multiplies_incoming_weights(lab):
     state = _state(poses, means, covs, np.ones((m, 1), dtype=bool), w_old)
     z = np.array([[4.1, 0.15, 0.0]])
     out = lab.fastslam_step(
-        state, [0.0, 0.0], z, np.zeros((3, 3)), QT, np.random.default_rng(13), dt=0.1, resample=False
+        state,
+        [0.0, 0.0],
+        z,
+        np.zeros((3, 3)),
+        QT,
+        np.random.default_rng(13),
+        dt=0.1,
+        resample=False,
     )
     ll = np.array([_kalman(means[k, 0], covs[k, 0], z[0, :2], poses[k], QT)[2] for k in range(m)])
     expected = w_old * np.exp(ll - ll.max())
     np.testing.assert_allclose(
-        _f(out["weights"]), expected / expected.sum(), rtol=1e-6, atol=1e-12,
+        _f(out["weights"]),
+        expected / expected.sum(),
+        rtol=1e-6,
+        atol=1e-12,
         err_msg=f"incoming weights {w_old}: new weights = old weights * likelihood, normalized",
     )
 
@@ -420,8 +443,11 @@ def test_fastslam_step_without_observations_keeps_weights_and_particles(lab):
     state = _state(poses, means, covs, np.ones((m, 2), dtype=bool), w_old)
     u, dt = np.array([0.5, 0.2]), 0.1
     moved = np.column_stack(
-        [poses[:, 0] + u[0] * dt * np.cos(poses[:, 2]), poses[:, 1] + u[0] * dt * np.sin(poses[:, 2]),
-         _wrap(poses[:, 2] + u[1] * dt)]
+        [
+            poses[:, 0] + u[0] * dt * np.cos(poses[:, 2]),
+            poses[:, 1] + u[0] * dt * np.sin(poses[:, 2]),
+            _wrap(poses[:, 2] + u[1] * dt),
+        ]
     )
     for observations in (np.empty((0, 3)), None):
         out = lab.fastslam_step(
@@ -429,11 +455,15 @@ def test_fastslam_step_without_observations_keeps_weights_and_particles(lab):
         )
         what = "None" if observations is None else "an empty (0, 3) array"
         np.testing.assert_allclose(
-            _f(out["weights"]), w_old, atol=1e-12,
+            _f(out["weights"]),
+            w_old,
+            atol=1e-12,
             err_msg=f"observations = {what}: the weights must stay {w_old} (no resampling)",
         )
         np.testing.assert_allclose(
-            _f(out["poses"]), moved, atol=1e-12,
+            _f(out["poses"]),
+            moved,
+            atol=1e-12,
             err_msg=f"observations = {what}: every particle moves, in its own order (no resampling)",
         )
         np.testing.assert_allclose(
@@ -570,7 +600,15 @@ def fiducial_run():
 
 
 @pytest.mark.grades("fastslam", points=8)
-def test_fastslam_maps_the_fiducials_and_tracks_the_robot(lab, fiducial_run):
+@requires(
+    "test_fastslam_output_shapes_and_start",
+    "test_fastslam_reports_the_particle_means",
+    "test_fastslam_step_one_particle_is_predict_then_kalman",
+    "test_fastslam_step_multiplies_incoming_weights",
+    "test_update_landmark_matches_a_hand_written_kalman_update",
+    "test_predict_poses_noise_moments_match_Q",
+)
+def test_fastslam_maps_the_fiducials_and_tracks_the_robot(lab, fiducial_run, request):
     run = fiducial_run
     errs = []
     for seed in E2E_SEEDS:
@@ -583,8 +621,10 @@ def test_fastslam_maps_the_fiducials_and_tracks_the_robot(lab, fiducial_run):
     assert pose_err < FINAL_POSE_BOUND, (
         f"final pose error {pose_err:.2f} m (median of 3 runs), bound {FINAL_POSE_BOUND} m"
     )
-    # the bounds are not vacuous: an independent correct filter meets them,
-    # both broken variants miss them
+    # the bounds are not vacuous: an independent correct filter meets them, both broken
+    # variants miss them (a check of this test itself: run on the reference solution only)
+    if request.config.getoption("--notebook") is not None:
+        return
     for kw, ok in (({}, True), ({"wrap": False}, False), ({"seed_weight": True}, False)):
         v = np.median(
             [_variant_fastslam(run, 50, np.random.default_rng(s), **kw) for s in E2E_SEEDS], axis=0
@@ -600,14 +640,18 @@ def test_fastslam_reports_the_particle_means(lab, fiducial_run):
     The run's heading crosses +-pi three times, where an arithmetic mean of
     headings near +pi and -pi would point backwards.
     """
-    out = lab.fastslam(fiducial_run, 20, np.random.default_rng(21), init="first_observation", history=True)
+    out = lab.fastslam(
+        fiducial_run, 20, np.random.default_rng(21), init="first_observation", history=True
+    )
     path, particles = _f(out["path"]), _f(out["particles"])
     assert particles.shape == (fiducial_run.n_steps + 1, 20, 3), (
         f"history=True: particles must be (T + 1, M, 3) = {(fiducial_run.n_steps + 1, 20, 3)}, "
         f"got {particles.shape}"
     )
     np.testing.assert_allclose(
-        path[:, :2], particles[:, :, :2].mean(1), atol=1e-9,
+        path[:, :2],
+        particles[:, :, :2].mean(1),
+        atol=1e-9,
         err_msg="path (x, y) at each step = mean of the particles (uniform weights after resampling)",
     )
     heading = np.arctan2(np.sin(particles[:, :, 2]).mean(1), np.cos(particles[:, :, 2]).mean(1))
@@ -622,11 +666,15 @@ def test_fastslam_reports_the_particle_means(lab, fiducial_run):
     d = mu - lm
     lm_cov = np.einsum("k,kjab->jab", w, sig) + np.einsum("k,kja,kjb->jab", w, d, d)
     np.testing.assert_allclose(
-        _f(out["landmarks"]), lm, atol=1e-9,
+        _f(out["landmarks"]),
+        lm,
+        atol=1e-9,
         err_msg="landmarks = weighted mean over the final particles of their landmark means",
     )
     np.testing.assert_allclose(
-        _f(out["landmark_covs"]), lm_cov, atol=1e-9,
+        _f(out["landmark_covs"]),
+        lm_cov,
+        atol=1e-9,
         err_msg="landmark_covs = weighted mixture covariance (mean of covariances + spread of means)",
     )
 

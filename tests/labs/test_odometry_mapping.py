@@ -28,6 +28,7 @@ from robolab.geometry import compose, wrap_angle
 from robolab.maps import OccupancyGrid, load_map
 
 RNG_SEED = 404
+requires = pytest.mark.requires
 
 
 def _f(x):
@@ -150,20 +151,28 @@ def test_scan_endpoints_drop_invalid_ranges(lab):
 @pytest.mark.grades("scan_endpoints", points=2)
 def test_scan_endpoints_zero_reading_with_range_min_zero(lab):
     """With range_min = 0 a zero reading is still no hit (a hit needs r > 0); r = range_max is none."""
-    scan = _scan([0.0, 1.5, 0.0, 4.0, 2.0], [0.0, 0.5, 1.0, 1.5, -2.0], range_min=0.0, range_max=4.0)
+    scan = _scan(
+        [0.0, 1.5, 0.0, 4.0, 2.0], [0.0, 0.5, 1.0, 1.5, -2.0], range_min=0.0, range_max=4.0
+    )
     got = _f(lab.scan_endpoints(scan, np.array([1.0, -1.0, 0.3]), np.zeros(3)))
-    expected = [[1.0 + 1.5 * np.cos(0.8), -1.0 + 1.5 * np.sin(0.8)],
-                [1.0 + 2.0 * np.cos(-1.7), -1.0 + 2.0 * np.sin(-1.7)]]
+    expected = [
+        [1.0 + 1.5 * np.cos(0.8), -1.0 + 1.5 * np.sin(0.8)],
+        [1.0 + 2.0 * np.cos(-1.7), -1.0 + 2.0 * np.sin(-1.7)],
+    ]
     assert got.shape == (2, 2), (
         f"ranges [0, 1.5, 0, 4, 2] with range_min = 0, range_max = 4: only 1.5 and 2 are hits, "
         f"expected 2 endpoints, got {got.shape[0]}"
     )
     np.testing.assert_allclose(
-        got, expected, atol=1e-9, err_msg="endpoints of the two hits (robot at (1, -1), heading 0.3)"
+        got,
+        expected,
+        atol=1e-9,
+        err_msg="endpoints of the two hits (robot at (1, -1), heading 0.3)",
     )
 
 
 @pytest.mark.grades("scan_endpoints", points=2)
+@requires("test_scan_endpoints_hand_computed", "test_scan_endpoints_rotated_and_offset_laser")
 def test_scan_endpoints_bad_input(lab):
     """Wrong pose shapes and mismatched ranges / angles raise ValueError."""
     scan = _scan([1.0, 2.0], [0.0, 1.0])
@@ -253,6 +262,7 @@ def test_beam_cells_shared_start_order_and_no_duplicates(lab):
 
 
 @pytest.mark.grades("beam_cells", points=3)
+@requires("test_beam_cells_match_brute_force_supercover", "test_beam_cells_hand_computed")
 def test_beam_cells_bad_input(lab):
     """Wrong shapes, mismatched beam counts and NaN raise ValueError."""
     with pytest.raises(ValueError):
@@ -360,7 +370,8 @@ def test_counting_update_zero_reading_and_inputs_unchanged(lab):
     before = (hits0.copy(), visits0.copy())
     scan = _scan([0.0, 2.2], [np.pi / 2, 0.0], range_min=0.0, range_max=4.0)
     hits, visits = (
-        _f(a) for a in lab.counting_map_update(hits0, visits0, scan, np.array([0.5, 0.5, 0.0]), grid)
+        _f(a)
+        for a in lab.counting_map_update(hits0, visits0, scan, np.array([0.5, 0.5, 0.0]), grid)
     )
     exp_visits = visits0.copy()
     exp_visits[0, 0:3] += 1  # only the 2.2 m beam along row 0, ending in cell (0, 2)
@@ -377,6 +388,7 @@ def test_counting_update_zero_reading_and_inputs_unchanged(lab):
 
 
 @pytest.mark.grades("counting_map_update", points=4)
+@requires("test_counting_update_hand_computed", "test_counting_update_matches_supercover_counts")
 def test_counting_map_wall_converges_to_occupied(lab):
     """A wall seen from 40 poses: its cells end up occupied, the space in front free."""
     rng = np.random.default_rng(RNG_SEED + 3)
@@ -471,6 +483,7 @@ def _tolerant_iou(occupancy, true_map, visible_walls):
 
 
 @pytest.mark.grades("counting_map_update", points=5)
+@requires("test_counting_update_hand_computed", "test_counting_update_matches_supercover_counts")
 def test_counting_map_from_bag_truth_beats_raw_odometry(lab, mapping_run):
     """Bundled bag: true poses give IoU >= 0.8 with the true walls; raw odometry 0.4 less.
 
@@ -511,6 +524,7 @@ def test_occupancy_from_counts_values(lab):
 
 
 @pytest.mark.grades("occupancy_from_counts", points=2)
+@requires("test_occupancy_from_counts_values")
 def test_occupancy_from_counts_bad_input(lab):
     """More hits than visits, negative counts or mismatched shapes raise ValueError."""
     with pytest.raises(ValueError):
@@ -535,6 +549,7 @@ def test_clip_map_values(lab):
 
 
 @pytest.mark.grades("clip_map", points=2)
+@requires("test_clip_map_values")
 def test_clip_map_bad_input(lab):
     """Occupancy outside [0, 1] (except -1), NaN, or a threshold outside [0, 1]: ValueError."""
     with pytest.raises(ValueError):
@@ -683,15 +698,20 @@ def test_logodds_update_zero_reading_and_input_unchanged(lab):
     scan = _scan([0.0], [0.0], range_min=0.0, range_max=2.5)
     got = _f(lab.logodds_update(prior, scan, np.array([0.0, 0.05, 0.0]), grid, params))
     np.testing.assert_allclose(
-        got, before, atol=1e-12,
+        got,
+        before,
+        atol=1e-12,
         err_msg="one beam reading 0 with range_min = 0: no cell may change (it is not a hit at the laser)",
     )
     scan = _scan([1.0], [0.0], range_min=0.0, range_max=2.5)
     lab.logodds_update(prior, scan, np.array([0.0, 0.05, 0.0]), grid, params)
-    np.testing.assert_array_equal(prior, before, err_msg="logodds_update modified the log-odds passed in")
+    np.testing.assert_array_equal(
+        prior, before, err_msg="logodds_update modified the log-odds passed in"
+    )
 
 
 @pytest.mark.grades("logodds_update", points=2)
+@requires("test_logodds_update_matches_table_9_2", "test_logodds_update_single_beam_profile")
 def test_logodds_update_bad_input(lab):
     """Missing parameters, alpha <= 0 and a log-odds array of the wrong shape raise ValueError."""
     grid = _grid(10, 10, 0.1)

@@ -1,9 +1,9 @@
-# ruff: noqa: F841, E501 -- a student mistake leaves a variable unused; lines as the student wrote them
-"""Only the diagonal of the covariance is used (independent components), the correlations are lost.
+"""A covariance with a negative eigenvalue is not refused: its negative part is clipped to 0
+silently.
 
-Noise model: covariance, not per-axis variances.
+Inputs the notebook says to refuse.
 
-class: formula
+class: refusal
 """
 
 import numpy as np
@@ -54,9 +54,7 @@ def init_gaussian(pose, cov, n, rng):
     if not np.allclose(sigma, sigma.T, atol=1e-12 * scale, rtol=0):
         raise ValueError("cov must be symmetric")
     evals, evecs = np.linalg.eigh(sigma)
-    if evals.min() < -1e-12 * scale:
-        raise ValueError(f"cov must be positive semi-definite, got eigenvalue {evals.min():.3g}")
     root = evecs * np.sqrt(np.clip(evals, 0.0, None))  # root @ root.T == cov
-    out = mu + rng.standard_normal((n, 3)) * np.sqrt(np.diag(sigma))
+    out = mu + rng.standard_normal((n, 3)) @ root.T
     out[:, 2] = wrap_angle(out[:, 2])
     return out
