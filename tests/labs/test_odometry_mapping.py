@@ -107,10 +107,21 @@ def test_scan_endpoints_hand_computed(lab):
     scan = _scan([1.0, 2.0, 0.5], [0.0, np.pi / 2, -np.pi / 4])
     got = _f(lab.scan_endpoints(scan, np.array([1.0, 2.0, 0.0]), np.zeros(3)))
     h = 0.5 / np.sqrt(2)
-    np.testing.assert_allclose(got, [[2.0, 2.0], [1.0, 4.0], [1.0 + h, 2.0 - h]], atol=1e-9)
+    np.testing.assert_allclose(
+        got,
+        [[2.0, 2.0], [1.0, 4.0], [1.0 + h, 2.0 - h]],
+        atol=1e-9,
+        err_msg="laser at the robot's centre (1, 2, 0): ranges [1, 2, 0.5] at angles [0, pi/2, "
+        "-pi/4]",
+    )
     # the robot turned by 90 degrees: every beam turns with it
     got = _f(lab.scan_endpoints(scan, np.array([0.0, 0.0, np.pi / 2]), np.zeros(3)))
-    np.testing.assert_allclose(got, [[0.0, 1.0], [-2.0, 0.0], [h, h]], atol=1e-9)
+    np.testing.assert_allclose(
+        got,
+        [[0.0, 1.0], [-2.0, 0.0], [h, h]],
+        atol=1e-9,
+        err_msg="robot at (0, 0) facing +y (pi/2): every beam turns with it",
+    )
 
 
 @pytest.mark.grades("scan_endpoints", points=4)
@@ -119,7 +130,12 @@ def test_scan_endpoints_rotated_and_offset_laser(lab):
     scan = _scan([2.0, 1.0, 3.0], [0.0, np.pi / 2, np.pi])
     got = _f(lab.scan_endpoints(scan, np.array([1.0, 2.0, np.pi / 2]), np.array([0.1, 0.0, np.pi])))
     # laser at (1, 2.1) looking towards -y: beam 0 -> -y, beam pi/2 -> +x, beam pi -> +y
-    np.testing.assert_allclose(got, [[1.0, 0.1], [2.0, 2.1], [1.0, 5.1]], atol=1e-9)
+    np.testing.assert_allclose(
+        got,
+        [[1.0, 0.1], [2.0, 2.1], [1.0, 5.1]],
+        atol=1e-9,
+        err_msg="laser yawed by pi, 0.1 m ahead of a robot at (1, 2) facing +y",
+    )
     # a laser offset sideways and yawed by -pi/2 on a robot at theta = pi
     got = _f(
         lab.scan_endpoints(
@@ -127,7 +143,12 @@ def test_scan_endpoints_rotated_and_offset_laser(lab):
         )
     )
     # laser at (-0.2, -0.3) heading pi/2 -> endpoint (-0.2, 1.2)
-    np.testing.assert_allclose(got, [[-0.2, 1.2]], atol=1e-9)
+    np.testing.assert_allclose(
+        got,
+        [[-0.2, 1.2]],
+        atol=1e-9,
+        err_msg="laser at (0.2, 0.3, -pi/2) on a robot at (0, 0, pi): one beam of 1.5 m",
+    )
 
 
 @pytest.mark.grades("scan_endpoints", points=3)
@@ -143,14 +164,23 @@ def test_scan_endpoints_drop_invalid_ranges(lab):
     assert got.shape == (2, 2), (
         f"only the ranges 3.0 and 0.05 (= range_min) are hits; got {got.shape[0]} endpoints"
     )
-    np.testing.assert_allclose(got, expected, atol=1e-9)
+    np.testing.assert_allclose(
+        got,
+        expected,
+        atol=1e-9,
+        err_msg="endpoints of the hits 3.0 and 0.05 (= range_min) among 0, inf, NaN, 0.01, 9, 8, "
+        "-1, -inf",
+    )
     none = _f(lab.scan_endpoints(_scan([np.nan, np.inf], [0.0, 1.0]), np.zeros(3), np.zeros(3)))
-    assert none.size == 0
+    assert none.size == 0, "ranges [NaN, inf]: no hit, so no endpoint; expected an empty result"
 
 
 @pytest.mark.grades("scan_endpoints", points=2)
 def test_scan_endpoints_zero_reading_with_range_min_zero(lab):
-    """With range_min = 0 a zero reading is still no hit (a hit needs r > 0); r = range_max is none."""
+    """With range_min = 0 a zero reading is still no hit (a hit needs r > 0).
+
+    A reading of range_max is none either.
+    """
     scan = _scan(
         [0.0, 1.5, 0.0, 4.0, 2.0], [0.0, 0.5, 1.0, 1.5, -2.0], range_min=0.0, range_max=4.0
     )
@@ -258,7 +288,9 @@ def test_beam_cells_shared_start_order_and_no_duplicates(lab):
         assert np.all(steps == 1), (
             f"beam {b}: consecutive cells must be neighbours (ordered along the beam)"
         )
-        assert set(cells) == _supercover(start, ends[b])
+        assert set(cells) == _supercover(start, ends[b]), (
+            "beam from (10.3, 20.6): cells must be exactly the supercover of the segment"
+        )
 
 
 @pytest.mark.grades("beam_cells", points=3)
@@ -295,8 +327,18 @@ def test_counting_update_hand_computed(lab):
     exp_visits = np.zeros((6, 6))
     exp_visits[0, 0:4] += 1  # the hit beam, end cell included
     exp_visits[0:5, 0] += 1  # the no-return beam: free up to range_max (y = 4.5, row 4)
-    np.testing.assert_array_equal(hits, exp_hits)
-    np.testing.assert_array_equal(visits, exp_visits)
+    np.testing.assert_array_equal(
+        hits,
+        exp_hits,
+        err_msg="hits: one hit, at the cell (0, 3) of the endpoint (3.7, 0.5); NaN and 0.01 "
+        "ignored",
+    )
+    np.testing.assert_array_equal(
+        visits,
+        exp_visits,
+        err_msg="visits: (0, 0)..(0, 3) from the hit beam, (0, 0)..(4, 0) from the inf beam up "
+        "to range_max",
+    )
 
 
 @pytest.mark.grades("counting_map_update", points=5)
@@ -352,19 +394,26 @@ def test_counting_update_invariants(lab):
         assert np.all(new_h >= hits) and np.all(new_v >= visits), "counts must never decrease"
         assert np.all(new_v - visits >= new_h - hits), "a hit is also a visit"
         occ = np.where(new_v > 0, new_h / np.maximum(new_v, 1), 0.0)
-        assert np.all((occ >= 0) & (occ <= 1))
+        assert np.all((occ >= 0) & (occ <= 1)), (
+            "hits / visits must stay in [0, 1] in every visited cell"
+        )
         hits, visits = new_h, new_v
     xs, ys = grid.cell_centers()
     far = np.hypot(xs - pose[0], ys - pose[1]) > 1.0 + 0.05 * np.sqrt(2)
     assert np.all(visits[far] == 0) and np.all(hits[far] == 0), (
         "cells beyond range_max must stay unseen"
     )
-    assert visits[~far].sum() > 0
+    assert visits[~far].sum() > 0, (
+        "a scan of 90 beams from (0.5, 0.5) must visit some cell within range_max"
+    )
 
 
 @pytest.mark.grades("counting_map_update", points=2)
 def test_counting_update_zero_reading_and_inputs_unchanged(lab):
-    """A zero reading with range_min = 0 adds nothing; the hits and visits passed in are not modified."""
+    """A zero reading with range_min = 0 adds nothing.
+
+    The hits and visits passed in are not modified.
+    """
     grid = _grid(6, 6, 1.0)
     hits0, visits0 = np.ones((6, 6)), np.full((6, 6), 2.0)
     before = (hits0.copy(), visits0.copy())
@@ -520,7 +569,12 @@ def test_occupancy_from_counts_values(lab):
     hits = np.array([[0.0, 1.0, 3.0], [0.0, 0.0, 2.0]])
     visits = np.array([[0.0, 4.0, 3.0], [5.0, 0.0, 8.0]])
     got = _f(lab.occupancy_from_counts(hits, visits))
-    np.testing.assert_allclose(got, [[-1.0, 0.25, 1.0], [0.0, -1.0, 0.25]], atol=1e-12)
+    np.testing.assert_allclose(
+        got,
+        [[-1.0, 0.25, 1.0], [0.0, -1.0, 0.25]],
+        atol=1e-12,
+        err_msg="hits [[0, 1, 3], [0, 0, 2]] over visits [[0, 4, 3], [5, 0, 8]]",
+    )
 
 
 @pytest.mark.grades("occupancy_from_counts", points=2)
@@ -543,9 +597,15 @@ def test_clip_map_values(lab):
     """Below the threshold -> 0, at or above -> 1, unknown stays -1 (seed 004, figure 1)."""
     occ = np.array([[-1.0, 0.0, 0.2, 0.49999], [0.5, 0.51, 1.0, -1.0]])
     got = _f(lab.clip_map(occ))
-    np.testing.assert_array_equal(got, [[-1.0, 0.0, 0.0, 0.0], [1.0, 1.0, 1.0, -1.0]])
+    np.testing.assert_array_equal(
+        got,
+        [[-1.0, 0.0, 0.0, 0.0], [1.0, 1.0, 1.0, -1.0]],
+        err_msg="clip_map at the default threshold 0.5 (0.5 -> 1, 0.49999 -> 0, -1 stays -1)",
+    )
     got = _f(lab.clip_map(occ, threshold=0.8))
-    np.testing.assert_array_equal(got, [[-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, -1.0]])
+    np.testing.assert_array_equal(
+        got, [[-1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, -1.0]], err_msg="clip_map at threshold 0.8"
+    )
 
 
 @pytest.mark.grades("clip_map", points=2)
@@ -612,7 +672,9 @@ def test_logodds_update_matches_table_9_2(lab):
     prior = rng.normal(0.0, 1.0, grid.shape)
     got = _f(lab.logodds_update(prior, scan, pose, grid, PARAMS))
     expected = prior + _table_9_2(grid, scan, pose, PARAMS)
-    assert got.shape == grid.shape
+    assert got.shape == grid.shape, (
+        "logodds_update must return an array of the grid's shape (36, 44)"
+    )
     bad = ~np.isclose(got, expected, atol=1e-9)
     assert not bad.any(), (
         f"{bad.sum()} cells differ from Table 9.2, e.g. cell {tuple(np.argwhere(bad)[0])}"
@@ -654,7 +716,13 @@ def test_logodds_update_single_beam_profile(lab):
     )[0]
     x = (np.arange(40) + 0.5) * 0.1
     expected = np.where(np.abs(x - 2.0) < 0.15, 2.0, np.where(x <= 2.0, -1.0, 0.0))
-    np.testing.assert_allclose(got, expected, atol=1e-12)
+    np.testing.assert_allclose(
+        got,
+        expected,
+        atol=1e-12,
+        err_msg="one beam of 2 m (alpha 0.3): -1 (free) before 1.85 m, +2 within 0.15 m of 2 m, "
+        "0 beyond",
+    )
     got = _f(
         lab.logodds_update(
             np.zeros(grid.shape),
@@ -664,12 +732,20 @@ def test_logodds_update_single_beam_profile(lab):
             params,
         )
     )[0]
-    np.testing.assert_allclose(got, np.where(x <= 3.5, -1.0, 0.0), atol=1e-12)
+    np.testing.assert_allclose(
+        got,
+        np.where(x <= 3.5, -1.0, 0.0),
+        atol=1e-12,
+        err_msg="a no-return (inf) beam with range_max 3.5: free up to 3.5 m, never occupied",
+    )
 
 
 @pytest.mark.grades("logodds_update", points=3)
 def test_logodds_update_table_9_2_at_headings_far_from_zero(lab):
-    """Table 9.2 cell by cell from lasers facing 2.8, -2.5 and 1.6 rad: bearings wrap around +-pi."""
+    """Table 9.2 cell by cell from lasers facing 2.8, -2.5 and 1.6 rad.
+
+    Bearings wrap around +-pi.
+    """
     rng = np.random.default_rng(RNG_SEED + 6)
     grid = _grid(22, 26, 0.1, origin=(-1.3, -1.1, 0.0))
     angles = np.linspace(-np.pi, np.pi, 24, endpoint=False) + 0.02
@@ -690,7 +766,10 @@ def test_logodds_update_table_9_2_at_headings_far_from_zero(lab):
 
 @pytest.mark.grades("logodds_update", points=2)
 def test_logodds_update_zero_reading_and_input_unchanged(lab):
-    """A zero reading with range_min = 0 is no information; the log-odds passed in are not modified."""
+    """A zero reading with range_min = 0 is no information.
+
+    The log-odds passed in are not modified.
+    """
     grid = _grid(1, 30, 0.1)
     params = {"l_occ": 2.0, "l_free": -1.0, "l_0": 0.0, "alpha": 0.3, "beta": 0.1}
     prior = np.full(grid.shape, 0.25)
@@ -701,7 +780,8 @@ def test_logodds_update_zero_reading_and_input_unchanged(lab):
         got,
         before,
         atol=1e-12,
-        err_msg="one beam reading 0 with range_min = 0: no cell may change (it is not a hit at the laser)",
+        err_msg="one beam reading 0 with range_min = 0: no cell may change (it is not a hit at "
+        "the laser)",
     )
     scan = _scan([1.0], [0.0], range_min=0.0, range_max=2.5)
     lab.logodds_update(prior, scan, np.array([0.0, 0.05, 0.0]), grid, params)
@@ -736,10 +816,21 @@ def test_logodds_to_probability_values(lab):
     """p = 1 - 1 / (1 + exp(l)), exact at hand-computed points and stable for huge |l|."""
     l = np.array([[0.0, np.log(3.0)], [-np.log(4.0), 2.0]])  # noqa: E741
     got = _f(lab.logodds_to_probability(l))
-    np.testing.assert_allclose(got, [[0.5, 0.75], [0.2, 1 - 1 / (1 + np.exp(2.0))]], rtol=1e-12)
+    np.testing.assert_allclose(
+        got,
+        [[0.5, 0.75], [0.2, 1 - 1 / (1 + np.exp(2.0))]],
+        rtol=1e-12,
+        err_msg="p = 1 - 1 / (1 + exp(l)) at l = 0, log 3, -log 4, 2",
+    )
     big = _f(lab.logodds_to_probability(np.array([-800.0, 800.0, -40.0])))
     assert np.all(np.isfinite(big)), "no NaN or inf for large |l|"
-    np.testing.assert_allclose(big, [0.0, 1.0, np.exp(-40.0)], rtol=1e-9, atol=0)
+    np.testing.assert_allclose(
+        big,
+        [0.0, 1.0, np.exp(-40.0)],
+        rtol=1e-9,
+        atol=0,
+        err_msg="l = -800, 800, -40: 0, 1 and exp(-40) without overflow or cancellation",
+    )
 
 
 @pytest.mark.grades("logodds_to_probability", points=2)
@@ -747,5 +838,12 @@ def test_logodds_to_probability_inverts_logodds(lab):
     """Round trip: log(p / (1 - p)) of the result gives the log-odds back."""
     l = np.linspace(-12.0, 12.0, 97)  # noqa: E741
     p = _f(lab.logodds_to_probability(l))
-    assert p.shape == l.shape and np.all(np.diff(p) > 0)
-    np.testing.assert_allclose(np.log(p / (1 - p)), l, atol=1e-6)
+    assert p.shape == l.shape and np.all(np.diff(p) > 0), (
+        "p = logodds_to_probability(linspace(-12, 12)) must keep the shape and increase strictly"
+    )
+    np.testing.assert_allclose(
+        np.log(p / (1 - p)),
+        l,
+        atol=1e-6,
+        err_msg="round trip log(p / (1 - p)) = l for l in [-12, 12]",
+    )
