@@ -22,58 +22,6 @@ from solutions.ekf_mapping import (
 
 
 def ekf_mapping_step(ekf, grid, speed, rotation_speed, scan, dt, max_range=MAX_RANGE):
-    """One step of EKF localization with mapping (the seed's ``GOMapping``).
-
-    Probabilistic Robotics, Table 3.3, with the map update in between:
-
-    .. math::
-
-        \\bar\\mu &= g(u_t, \\mu_{t-1}), \\qquad
-        \\bar\\Sigma = G_t \\Sigma_{t-1} G_t^T + Q \\\\
-        m_t &= m_{t-1} + \\ell(\\bar\\mu, z_t) \\\\
-        K_t &= \\bar\\Sigma H_t^T (H_t \\bar\\Sigma H_t^T + R)^{-1}, \\qquad
-        H_t = \\partial h(\\bar\\mu, m_t) / \\partial x \\\\
-        \\mu_t &= \\bar\\mu + K_t (z_t - h(\\bar\\mu, m_t)), \\qquad
-        \\Sigma_t = (I - K_t H_t) \\bar\\Sigma (I - K_t H_t)^T + K_t R K_t^T
-
-    (``Q`` is the process noise and ``R`` the measurement noise, as filterpy
-    names them; the covariance update is filterpy's Joseph form.) The
-    prediction runs filterpy's :meth:`ExtendedKalmanFilter.predict` with
-    ``predict_x`` overridden by the nonlinear :func:`transition_model` and
-    ``F`` set to :func:`state_jacobian` at the previous mean; the correction
-    is :meth:`ExtendedKalmanFilter.update` with ``Hx`` =
-    :func:`measurement_function` and ``HJacobian`` = :func:`measurement_jacobian`
-    in the *updated* map.
-
-    The map is updated after the prediction, from the predicted pose ``mu_bar``:
-    that is the best pose the filter knows when the scan arrives, and the
-    correction needs a map that already contains the obstacles (in the very
-    first step the map is empty and every predicted range would be ``zmax``).
-    The seed's code passes the previous pose to ``mapping``; here it is the
-    predicted one, as its text explains.
-
-    Parameters
-    ----------
-    ekf : ExtendedKalmanFilter or (x, P, Q, R)
-        The filter (``dim_x = 3``, ``dim_z = B``); it is advanced in place
-        when given as an object. Or plain arrays: mean ``x (3,)``, covariance
-        ``P (3, 3)``, process noise ``Q (3, 3)``, measurement noise ``R (B, B)``
-        (also accepted as a dict with those keys); these are not modified.
-    grid : array_like, shape (H, W)
-        Evidence map before this step.
-    speed, rotation_speed, dt : float
-        Command and time step, as in :func:`transition_model`.
-    scan : array_like, shape (B,)
-        The measured ranges (B = the size of ``R``).
-    max_range : float
-        ``zmax``.
-
-    Returns
-    -------
-    state : numpy.ndarray, shape (3,)
-    covariance : numpy.ndarray, shape (3, 3)
-    map : numpy.ndarray, shape (H, W)
-    """
     f = _as_filter(ekf)
     b = f.R.shape[0]
     z = as_array("scan", scan, ndim=1)

@@ -16,48 +16,6 @@ from solutions.fastslam import _mean_pose, fastslam_step, init_particles
 def fastslam(
     robot_or_run, n_particles, rng, init="first_observation", Q=None, Qt=None, history=False
 ):
-    r"""Run FastSLAM 1.0 over a whole run of the fiducial robot (seed 003's main loop).
-
-    ::
-
-        state = init_particles(M, K, x0, init)
-        while robot.run():
-            state = fastslam_step(state, robot.input(), robot.measurement(), Q, Qt, rng)
-
-    Estimates reported (document of choice): the pose estimate at each step is
-    the mean of the particles after the step (after resampling all weights are
-    equal; the heading is the circular mean). The final map is the weighted
-    mixture of the particles' landmark Gaussians, moment-matched:
-    :math:`\bar\mu_j = \sum_k w_k \mu_{k,j}`,
-    :math:`\bar\Sigma_j = \sum_k w_k (\Sigma_{k,j} + (\mu_{k,j}-\bar\mu_j)(\mu_{k,j}-\bar\mu_j)^T)`.
-    Landmarks never observed are reported as NaN.
-
-    Parameters
-    ----------
-    robot_or_run : FiducialRobot, FiducialRun or path
-        A :class:`robolab.fiducials.FiducialRobot` (driven from its current
-        step), or a recorded :class:`robolab.fiducials.FiducialRun` / ``.npz``
-        path (replayed from its start).
-    n_particles : int
-        Number of particles M.
-    rng : numpy.random.Generator
-    init : {"first_observation", "prior"}
-        Landmark initialization (:func:`init_particles`). The default is the
-        book's: the seed's ``"prior"`` linearizes the first update of every
-        landmark at the origin, which can leave it metres off with a small
-        covariance for hundreds of steps (the notebook shows it).
-    Q, Qt : array_like, optional
-        Noise covariances the filter assumes; default the robot's own.
-    history : bool
-        Also return every particle's pose at every step.
-
-    Returns
-    -------
-    dict
-        ``path`` (T+1, 3) estimated poses (row 0 is ``x0``); ``landmarks`` (K, 2);
-        ``landmark_covs`` (K, 2, 2); ``observed`` (K,) bool; ``state`` the final
-        particle set; with ``history=True`` also ``particles`` (T+1, M, 3).
-    """
     robot = as_robot(robot_or_run)
     check_rng(rng)
     q = robot.Q if Q is None else Q

@@ -21,50 +21,6 @@ from solutions.fastslam import (
 
 
 def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True):
-    r"""One step of FastSLAM 1.0 with known correspondences (Probabilistic Robotics Table 13.1).
-
-    1. Sample each particle's pose from the motion model (:func:`predict_poses`).
-    2. For every observation ``[r, phi, j]``, in every particle at once: if
-       landmark j has a belief, EKF-update it (:func:`update_landmark`) and
-       multiply the weight by the likelihood; otherwise initialize it from the
-       observation, :math:`\mu = (x + r\cos(\theta+\phi), y + r\sin(\theta+\phi))`,
-       :math:`\Sigma = H^{-1} Q_t H^{-T}`, weight factor :math:`p_0`. Landmarks not
-       observed are left alone. Observations of different landmarks are
-       processed together; a repeated id waits for the next round.
-    3. Normalize the weights in log space:
-       :math:`w_k = \exp(\ell_k - \max\ell) / \sum_i \exp(\ell_i - \max\ell)` with
-       :math:`\ell_k = \ln w_k^{old} + \sum \ln \mathcal N(z; \hat z, Q)`, so the
-       weights stay finite even when every likelihood underflows.
-    4. Resample with the low-variance sampler (Table 4.4), unless ``resample``
-       is False or there was no observation (then the weights did not change).
-       Resampling copies the chosen particles' arrays (fancy indexing): no two
-       particles share landmark memory, and the input ``state`` is not modified.
-
-    Parameters
-    ----------
-    state : dict
-        ``poses``, ``means``, ``covs``, ``seen``, ``weights`` as made by
-        :func:`init_particles`.
-    command : array_like, shape (2,)
-        ``[v, omega]``.
-    observations : array_like, shape (k, 3)
-        Rows ``[range, bearing, id]`` (``k`` may be 0; ``None`` means none).
-    Q : array_like, shape (3, 3)
-        Motion noise covariance.
-    Qt : array_like, shape (2, 2)
-        Measurement noise covariance.
-    rng : numpy.random.Generator
-    dt : float
-        Time step in seconds.
-    resample : bool
-        Resample after weighting (the book always does). With False the new
-        state keeps the normalized importance weights.
-
-    Returns
-    -------
-    dict
-        The new state (new arrays). After resampling the weights are uniform.
-    """
     s = _check_state(state)
     n_landmarks = s["means"].shape[1]
     obs = _observations(observations, n_landmarks)

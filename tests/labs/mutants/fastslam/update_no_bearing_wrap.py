@@ -12,51 +12,6 @@ from solutions.fastslam import _inv2, _last_dim, _range_bearing, _range_bearing_
 
 
 def update_landmark(mean, cov, z, pose, Qt):
-    r"""EKF update of one landmark's Gaussian, and the log-likelihood (Table 13.1, lines 12-19).
-
-    .. math::
-
-        \hat z &= h(\mu, x), \quad H = \partial h / \partial \mu, \quad
-        Q = H \Sigma H^T + Q_t, \quad K = \Sigma H^T Q^{-1} \\
-        e &= z - \hat z \quad (\text{bearing wrapped to } [-\pi, \pi)) \\
-        \mu' &= \mu + K e, \qquad \Sigma' = (I - K H)\,\Sigma \\
-        \ln w &= -\tfrac12 \ln|2\pi Q| - \tfrac12 e^T Q^{-1} e
-
-    so :math:`w = |2\pi Q|^{-1/2}\exp(-\frac12 e^T Q^{-1} e)`, the Gaussian
-    density of the innovation. The seed's handout prints
-    :math:`|2\pi Q|^{+1/2}\exp(-\frac12 e^T Q e)` and :math:`e = \hat z - z`:
-    both are typos. Without the wrap, a bearing measured as 3.1 rad and predicted
-    as -3.1 rad (0.08 rad apart) would look 6.2 rad apart.
-
-    The likelihood is returned as its logarithm: for a landmark estimate metres
-    away from the measurement it is :math:`e^{-1000}` or less, which underflows
-    to 0 in every particle; the log stays finite and the filter normalizes
-    with the log-sum-exp trick.
-
-    Broadcasts over leading dimensions, e.g. ``mean`` (M, 2), ``cov``
-    (M, 2, 2), ``pose`` (M, 3) and one ``z`` (2,) for all particles.
-
-    Parameters
-    ----------
-    mean : array_like, shape (..., 2)
-        Landmark mean :math:`\mu`, metres.
-    cov : array_like, shape (..., 2, 2)
-        Landmark covariance :math:`\Sigma` (symmetric positive definite).
-    z : array_like, shape (..., 2)
-        Measurement ``[range, bearing]``.
-    pose : array_like, shape (..., 3)
-        The particle's pose.
-    Qt : array_like, shape (2, 2)
-        Measurement noise covariance.
-
-    Returns
-    -------
-    mean : numpy.ndarray, shape (..., 2)
-    cov : numpy.ndarray, shape (..., 2, 2)
-        Symmetrized.
-    log_likelihood : numpy.ndarray, shape (...)
-        :math:`\ln \mathcal N(z; \hat z, Q)`, finite.
-    """
     mu = _last_dim("mean", mean, 2)
     sigma = as_array("cov", cov, finite=True)
     if sigma.ndim < 2 or sigma.shape[-2:] != (2, 2):

@@ -25,52 +25,6 @@ from solutions.mcl import (
 def augmented_mcl_step(
     particles, weights, odom_prev, odom_now, scan, field, params, rng, grid, w_slow, w_fast
 ):
-    r"""Augmented MCL with random-particle recovery: Probabilistic Robotics, Table 8.3.
-
-    After the motion update and the weighting of :func:`mcl_step`, the average
-    likelihood feeds two exponential filters (AMCL's ``recovery_alpha_slow``
-    and ``recovery_alpha_fast``, :math:`0 \le \alpha_{slow} \ll \alpha_{fast}`):
-
-    .. math::
-
-        w_{avg} = \frac1N \sum_m \tilde w^{[m]}, \quad
-        w_{slow} \mathrel{+}= \alpha_{slow}(w_{avg} - w_{slow}), \quad
-        w_{fast} \mathrel{+}= \alpha_{fast}(w_{avg} - w_{fast}),
-
-    and resampling replaces each particle, with probability
-    :math:`\max(0, 1 - w_{fast} / w_{slow})`, by a pose drawn uniformly over the
-    free space (:func:`init_uniform`); the others are drawn by low-variance
-    resampling. A sudden drop of the likelihood (a kidnapping) makes
-    :math:`w_{fast} < w_{slow}` and injects random particles until one of them
-    finds the robot.
-
-    The per-particle likelihood :math:`\tilde w` is tempered to the geometric
-    mean over the :math:`K` beams used, :math:`\tilde w = p(z \mid x)^{1/K}`: the
-    product of 60 beam likelihoods varies over hundreds of orders of magnitude
-    from scan to scan, which would make :math:`w_{fast}/w_{slow}` jump on every
-    scan (AMCL uses its own bounded score, :math:`1 + \sum_k p_k^3`, for the
-    same reason). The step always updates and resamples (the thresholds of
-    :func:`mcl_step` do not apply).
-
-    Parameters
-    ----------
-    particles, weights, odom_prev, odom_now, scan, field, params, rng
-        As for :func:`mcl_step`; ``params`` also holds ``alpha_slow`` and ``alpha_fast``.
-    grid : robolab.maps.OccupancyGrid
-        The map, for the random particles.
-    w_slow, w_fast : float
-        The filters' values from the previous step, >= 0; 0 at the start (the
-        first step then sets both to :math:`w_{avg}` -- a 0 would be an
-        infinitely bad history).
-
-    Returns
-    -------
-    particles : numpy.ndarray, shape (N, 3)
-    weights : numpy.ndarray, shape (N,)
-        Uniform, ``1/N``.
-    w_slow, w_fast : float
-        Updated filter values.
-    """
     p = as_poses("particles", particles)
     n = p.shape[0]
     w = _weights(weights, n)

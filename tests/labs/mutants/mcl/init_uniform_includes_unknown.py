@@ -13,41 +13,6 @@ from solutions.mcl import _check_rng, _count
 
 
 def init_uniform(grid, n, rng):
-    r"""Particles drawn uniformly over the free space of a map (global localization).
-
-    A cell is drawn uniformly among the map's free cells, then a position
-    uniformly *inside* that cell (not at its centre), and a heading uniformly in
-    :math:`[-\pi, \pi)`:
-
-    .. math::
-
-        (x, y) \sim \mathcal{U}(\text{free space}), \qquad
-        \theta \sim \mathcal{U}[-\pi, \pi).
-
-    This is the prior :math:`bel(x_0)` of global localization (Probabilistic
-    Robotics, section 8.3; AMCL's ``pf_init_model`` with the free-space sampler).
-
-    Parameters
-    ----------
-    grid : robolab.maps.OccupancyGrid
-        The map; only its known free cells (``grid.free``) receive particles.
-    n : int
-        Number of particles, >= 1.
-    rng : numpy.random.Generator
-        The only source of randomness.
-
-    Returns
-    -------
-    numpy.ndarray, shape (n, 3)
-        Poses ``(x, y, theta)`` in the map frame, metres and radians.
-
-    Raises
-    ------
-    TypeError
-        If ``grid`` is not an OccupancyGrid, ``n`` not an integer or ``rng`` not a Generator.
-    ValueError
-        If ``n < 1`` or the map has no free cell.
-    """
     if not isinstance(grid, OccupancyGrid):
         raise TypeError(f"grid must be a robolab.maps.OccupancyGrid, got {type(grid).__name__}")
     n = _count("n", n)

@@ -17,52 +17,6 @@ from solutions.mcl import _field_arrays, _gaussian, _mixture, _params, _scan_arr
 
 
 def likelihood_field_model(scan, particles, field, params):
-    r"""Log-likelihood :math:`\log p(z \mid x, m)` of a scan for every particle: Table 6.3.
-
-    Each valid beam :math:`k` (range :math:`z^k`, angle :math:`\theta_k` in the
-    laser frame) is projected from the laser's pose
-    :math:`x_{laser} = x \oplus x_{laser}^{base}` (``params["laser_pose"]``):
-
-    .. math::
-
-        x_{z^k} = x_{laser} + z^k \cos(\theta_{laser} + \theta_k), \quad
-        y_{z^k} = y_{laser} + z^k \sin(\theta_{laser} + \theta_k),
-
-    looked up in the field (world -> cell with the map's resolution and origin,
-    seed 004's detail 1), and scored with the mixture
-
-    .. math::
-
-        \log p(z \mid x, m) = \sum_k \log\Big( z_{hit}\, \mathcal N(d(x_{z^k}); 0, \sigma_{hit}^2)
-                                             + \frac{z_{rand}}{z_{max}} \Big)
-
-    with :math:`z_{max}` the scan's ``range_max``. Beams that are not real
-    returns (NaN, inf, outside ``[range_min, range_max)``: max-range readings
-    carry no position information, AMCL skips them) are skipped. An endpoint
-    outside the map is scored as if at :math:`d_{max}` (seed 004's detail 2,
-    AMCL's ``max_occ_dist``): the smallest per-beam likelihood, a penalty that
-    stays finite. ``params["max_beams"]`` keeps every ``(B - 1) // (max_beams - 1)``-th
-    beam as AMCL does. The mixture is summed in log space, so the result is
-    finite even for ``z_rand = 0``.
-
-    Parameters
-    ----------
-    scan : dict
-        ``"ranges"`` (B,), ``"angles"`` (B,) radians, ``"range_min"``, ``"range_max"`` metres.
-    particles : array_like, shape (N, 3)
-    field : dict
-        From :func:`likelihood_field` (uses ``distance``, ``resolution``,
-        ``origin``, ``sigma_hit``, ``max_dist``).
-    params : dict
-        ``z_hit``, ``z_rand`` (>= 0, not both 0), optional ``laser_pose`` (3,)
-        and ``max_beams``; see :data:`DEFAULT_PARAMS`.
-
-    Returns
-    -------
-    numpy.ndarray, shape (N,)
-        Log-likelihoods (natural log); 0 for every particle if no beam is valid.
-        Use :func:`normalize_log_weights` to turn them into weights.
-    """
     p = as_poses("particles", particles)
     ranges, angles, _, rmax = _scan_arrays(scan)
     dist, sigma, dmax, geometry = _field_arrays(field)

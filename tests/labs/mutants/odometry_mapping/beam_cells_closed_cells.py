@@ -13,51 +13,6 @@ from robolab.validation import as_array
 
 
 def beam_cells(start_cell, end_cell):
-    r"""Every grid cell a straight beam touches (exact supercover), for many beams at once.
-
-    A beam is the closed segment :math:`p(t) = s + t\,(e - s)`, :math:`t \in [0, 1]`,
-    in continuous cell coordinates ``(row, col)`` (``grid.world_to_map(xy)[..., ::-1]``).
-    Cell ``(i, j)`` is the half-open square ``[i, i+1) x [j, j+1)``, the
-    convention of :meth:`~robolab.maps.OccupancyGrid.world_to_cell`; the beam's
-    cells are exactly
-
-    .. math:: C(s, e) = \{ (\lfloor p_r(t) \rfloor, \lfloor p_c(t) \rfloor) : t \in [0, 1] \},
-
-    every cell that contains a point of the segment and no other. The first cell
-    is ``floor(s)`` and the last ``floor(e)``: the **end cell is included** (the
-    counting algorithm counts it as visited and hit). A beam through a grid
-    corner gets only the cells that own a point of it under the half-open
-    convention (no extra corner neighbours); a beam along a grid line lies in
-    the cells above / right of the line.
-
-    The traversal is exact (not sampled): for each column ``j`` the beam
-    crosses, the parameter interval on which ``j <= p_c(t) < j + 1`` gives the
-    beam's row span in that column, and the cells are those rows (the column
-    sweep form of Amanatides & Woo's grid traversal, 1987). Vectorized over
-    beams and cells with no Python loop. Cells outside a map are returned too;
-    the caller keeps those inside.
-
-    Parameters
-    ----------
-    start_cell : array_like, shape (2,) or (B, 2)
-        Beam start(s) ``(row, col)`` in continuous cell coordinates; one start
-        is shared by all beams (the laser).
-    end_cell : array_like, shape (2,) or (B, 2)
-        Beam end(s) ``(row, col)``.
-
-    Returns
-    -------
-    cells : numpy.ndarray of int64, shape (N, 2)
-        ``(row, col)`` of the touched cells, beam after beam, each beam's cells
-        ordered from its start cell to its end cell, no cell twice within a beam.
-    beam : numpy.ndarray of int64, shape (N,)
-        Index of the beam each cell belongs to (non-decreasing).
-
-    Raises
-    ------
-    ValueError
-        Shapes other than (2,) / (B, 2), mismatched B, non-finite coordinates.
-    """
     s = as_array("start_cell", start_cell, ndim=(1, 2), finite=True)
     e = as_array("end_cell", end_cell, ndim=(1, 2), finite=True)
     if s.shape[-1] != 2:

@@ -18,53 +18,6 @@ from solutions.odometry_mapping import (
 
 
 def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
-    r"""One step of occupancy grid mapping in log-odds form (Probabilistic Robotics, Table 9.1).
-
-    For every cell :math:`m_i` in the perceptual field of the scan,
-
-    .. math:: l_{t,i} = l_{t-1,i} + \mathrm{inverse\_sensor\_model}(m_i, x_t, z_t) - l_0 ,
-
-    and other cells keep their value. The inverse range sensor model is Table
-    9.2: with :math:`(x_i, y_i)` the centre of cell ``i`` and :math:`(x, y, \theta)`
-    the laser pose,
-
-    .. math::
-
-        r &= \sqrt{(x_i - x)^2 + (y_i - y)^2}, \qquad
-        \phi = \mathrm{wrap}(\operatorname{atan2}(y_i - y, x_i - x) - \theta) \\
-        k &= \operatorname{argmin}_j |\mathrm{wrap}(\phi - \theta_j)| \\
-        &\text{if } r > \min(z_{max}, z_k + \alpha/2) \text{ or } |\phi - \theta_k| > \beta/2:
-            \ l_0 \ \text{(no information)} \\
-        &\text{else if } z_k < z_{max} \text{ and } |r - z_k| < \alpha/2: \ l_{occ} \\
-        &\text{else if } r \le z_k: \ l_{free}
-
-    with :math:`z_{max}` = ``scan['range_max']``. A no-return beam (``+inf`` or
-    ``r >= range_max``) is a reading :math:`z_k = z_{max}`: free up to the max
-    range, never occupied. Invalid beams (NaN, ``<= 0``, ``< range_min``) are
-    removed before the nearest-beam search. The evidence a scan adds does not
-    depend on the map, so updates commute: the result after several scans is
-    the prior plus the sum of each scan's evidence, in any order.
-
-    Parameters
-    ----------
-    logodds : array_like, shape grid.shape
-        Current log-odds :math:`l_{t-1}` (finite; not modified).
-    scan : dict
-        ``ranges`` (B,), ``angles`` (B,), ``range_min``, ``range_max``.
-    pose : array_like, shape (3,)
-        The **laser's** pose in the map frame.
-    grid : robolab.maps.OccupancyGrid
-        The map's geometry.
-    inverse_sensor_model_params : dict
-        ``l_occ``, ``l_free``, ``l_0`` (log-odds), ``alpha`` (obstacle thickness,
-        metres, > 0), ``beta`` (beam width, radians, > 0); see
-        :data:`INVERSE_SENSOR_MODEL`.
-
-    Returns
-    -------
-    numpy.ndarray of float, shape grid.shape
-        The updated log-odds :math:`l_t`, a new array.
-    """
     grid = _check_grid(grid)
     out = _layer("logodds", logodds, grid)
     ranges, angles, rmin, rmax = _scan_arrays(scan)
