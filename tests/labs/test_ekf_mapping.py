@@ -29,6 +29,17 @@ from robolab.raycast import cast_rays
 
 ANGLES = np.deg2rad(10.0 * np.arange(36))  # the seed's 36 beams
 ZMAX = 20.0
+#: Exercises each exercise is likely to call (the feedback names them when they fail).
+USES = {
+    "update_map": ["inverse_sensor_model"],
+    "ekf_mapping_step": [
+        "transition_model",
+        "state_jacobian",
+        "measurement_function",
+        "measurement_jacobian",
+        "update_map",
+    ],
+}
 requires = pytest.mark.requires
 DATA = Path(__file__).resolve().parents[2] / "data" / "ekf_world.npz"
 

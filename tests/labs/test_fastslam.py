@@ -26,6 +26,11 @@ from scipy.stats import multivariate_normal
 from robolab.fiducials import FiducialRobot
 
 requires = pytest.mark.requires
+#: Exercises each exercise is likely to call (the feedback names them when they fail).
+USES = {
+    "fastslam_step": ["predict_poses", "update_landmark", "h", "h_jacobian"],
+    "fastslam": ["init_particles", "fastslam_step"],
+}
 QT = np.diag([0.1**2, np.deg2rad(2.0) ** 2])
 
 

@@ -35,6 +35,22 @@ from robolab.raycast import cast_rays
 grades = pytest.mark.grades
 requires = pytest.mark.requires
 
+#: Exercises each exercise is likely to call (the feedback names them when they fail).
+USES = {
+    "mcl_step": [
+        "sample_motion_model_odometry",
+        "likelihood_field_model",
+        "normalize_log_weights",
+        "low_variance_resample",
+    ],
+    "augmented_mcl_step": [
+        "sample_motion_model_odometry",
+        "likelihood_field_model",
+        "normalize_log_weights",
+        "low_variance_resample",
+        "init_uniform",
+    ],
+}
 ALPHAS = (0.01, 0.02, 0.03, 0.04)
 N_MOMENTS = 200_000
 #: Likelihood-model parameters of the synthetic tests.

@@ -28,6 +28,8 @@ from robolab.geometry import compose, wrap_angle
 from robolab.maps import OccupancyGrid, load_map
 
 RNG_SEED = 404
+#: Exercises each exercise is likely to call (the feedback names them when they fail).
+USES = {"counting_map_update": ["beam_cells"]}
 requires = pytest.mark.requires
 
 
