@@ -767,6 +767,7 @@ def test_logodds_update_table_9_2_at_headings_far_from_zero(lab):
 
 
 @pytest.mark.grades("logodds_update", points=2)
+@requires("test_logodds_update_matches_table_9_2", "test_logodds_update_single_beam_profile")
 def test_logodds_update_zero_reading_and_input_unchanged(lab):
     """A zero reading with range_min = 0 is no information.
 
