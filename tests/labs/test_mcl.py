@@ -883,8 +883,9 @@ def _run(lab, bag, field, particles, seed, every, t_end, params=None):
     )
 
 
-@grades("mcl_step", points=6)
-@requires(
+#: The end-to-end runs of mcl_step count only when mcl_step's own parts and the pieces it is
+#: made of (the student's motion and measurement models, normalization, resampling) pass.
+MCL_PIECES = (
     "test_mcl_step_update_thresholds_and_resample_interval",
     "test_mcl_step_multiplies_and_carries_incoming_weights",
     "test_motion_model_straight",
@@ -895,6 +896,10 @@ def _run(lab, bag, field, particles, seed, every, t_end, params=None):
     "test_normalize_log_weights_without_underflow",
     "test_low_variance_resample_counts",
 )
+
+
+@grades("mcl_step", points=6)
+@requires(*MCL_PIECES)
 def test_mcl_tracking_on_the_bag(lab, bag, bag_field):
     # Tracking from a Gaussian around the true start (10 cm, 0.1 rad): after the first 5 s the
     # estimate stays within 0.25 m (Nav2's localization test) and 0.2 rad of the ground truth.
@@ -923,17 +928,7 @@ GLOBAL_SIGMA = 0.3
 
 
 @grades("mcl_step", points=5)
-@requires(
-    "test_mcl_step_update_thresholds_and_resample_interval",
-    "test_mcl_step_multiplies_and_carries_incoming_weights",
-    "test_motion_model_straight",
-    "test_motion_model_turning",
-    "test_motion_model_across_the_pi_seam",
-    "test_model_matches_table_6_3_oracle",
-    "test_model_log_form_when_a_mixture_term_vanishes",
-    "test_normalize_log_weights_without_underflow",
-    "test_low_variance_resample_counts",
-)
+@requires(*MCL_PIECES)
 def test_mcl_global_localization_converges(lab, bag):
     # Global localization from a uniform start (GLOBAL_N particles) at the bag's start, in an
     # office that looks like three others: by 45 s the best hypothesis must be within 0.25 m and
