@@ -56,8 +56,9 @@ def wrap(angle):
     grader disables while ``wrap`` is graded (``robolab.grading.delegation``).
     """
     a = np.asarray(angle, dtype=float)
-    wrapped = (a + np.pi) % (2.0 * np.pi) - np.pi
-    # Just below -pi, (a + pi) % 2pi rounds up to 2pi and the result would be +pi.
+    # Subtract the whole turns that take a into [-pi, pi): k = floor((a + pi) / 2 pi).
+    wrapped = a - 2.0 * np.pi * np.floor((a + np.pi) / (2.0 * np.pi))
+    # Rounding can land exactly on +pi (a just below -pi, or at an odd multiple of pi).
     wrapped = np.where(wrapped >= np.pi, wrapped - 2.0 * np.pi, wrapped)
     return float(wrapped) if wrapped.ndim == 0 else wrapped
 

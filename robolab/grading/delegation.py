@@ -4,7 +4,8 @@ The student edition ships all of :mod:`robolab`, because the labs use it: lab 00
 reads bags with :class:`robolab.bag.BagReader`, lab 04 places endpoints with
 :func:`robolab.geometry.transform_points`. Some of those library functions *are*
 an exercise of another (or the same) lab: ``PoseTrack.at`` is lab 00's
-``pose_at``. While such an exercise is graded, the worker replaces the
+``pose_at``. While such an exercise is graded (the worker's ``serve`` runs
+each call inside :func:`forbidden`), the worker replaces the
 library's equivalents with a function that raises :class:`DelegationError`
 (a ``NotImplementedError``, so no refusal test counts it as a refusal), and
 puts them back afterwards: during every other call they work as usual.
@@ -169,8 +170,10 @@ def _refusal(dotted: str, exercise: str):
 def _same(candidate: object, original: object) -> bool:
     if candidate is original:
         return True
-    # a bound method stored at module level: Scans(...).endpoints
-    return isinstance(candidate, types.MethodType) and candidate.__func__ is original
+    try:  # a bound method stored at module level: Scans(...).endpoints
+        return type(candidate) is types.MethodType and candidate.__func__ is original
+    except Exception:  # noqa: BLE001 - a student's object may raise on attribute access
+        return False
 
 
 @contextlib.contextmanager

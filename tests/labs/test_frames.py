@@ -334,7 +334,7 @@ def test_transform_points_matches_library_on_random_input(lab):
 
 @grades("transform_points", points=5)
 def test_transform_points_invariants(lab):
-    """transform_points: the identity changes nothing, distances are kept, two frames chain"""
+    """transform_points: identity changes nothing, distances kept, frames chain, input untouched"""
     rng = np.random.default_rng(3)
     points = rng.uniform(-5.0, 5.0, (50, 2))
     np.testing.assert_allclose(
@@ -361,6 +361,14 @@ def test_transform_points_invariants(lab):
         atol=1e-9,
         err_msg="transforming by a = (0.1, 0.05, 0.3), then by b = (2, 1, -2.8): expected the "
         "same as one transform by the composed pose b * a",
+    )
+    before = points.copy()
+    lab.transform_points(points, [1.0, 1.0, 1.0])
+    np.testing.assert_array_equal(
+        points,
+        before,
+        err_msg="transform_points(points, (1, 1, 1)) changed its points argument in place: "
+        "expected the input unchanged (compute a new array)",
     )
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import nbformat
 import pytest
 
+from robolab.grading.delegation import FORBIDDEN
 from robolab.grading.labs import discover_labs, find_lab
 
 from . import build
@@ -29,11 +30,19 @@ MIN_MUTANTS = 12
 #: The classes of issue 15 each lab's suite must cover (those that apply to it).
 APPLICABLE = {
     "frames": {"boundary", "refusal", "angle-wrap", "formula", "delegation"},
-    "bayes": {"boundary", "refusal", "degenerate-weights", "incoming-weights", "result-type"},
-    "beam_model": {"boundary", "refusal", "underflow", "formula", "self-consistency"},
-    "landmark_pf": {
+    "bayes": {
         "boundary",
         "refusal",
+        "underflow",
+        "degenerate-weights",
+        "incoming-weights",
+        "result-type",
+        "formula",
+    },
+    "beam_model": {"boundary", "refusal", "underflow", "formula", "self-consistency"},
+    "landmark_pf": {
+        "refusal",
+        "formula",
         "degenerate-weights",
         "incoming-weights",
         "angle-wrap",
@@ -82,15 +91,11 @@ APPLICABLE = {
         "delegation",
     },
 }
-#: Labs whose hidden tests do not yet refuse free points (their owner gates them next).
 #: Whether the worker observes argument changes and result aliasing (issue 14 item 5). Until
 #: it does, arguments cross as copies and an in-place mistake cannot lose points.
 OBSERVES_ARGUMENTS = importlib.util.find_spec("robolab.grading.observe") is not None
-FREE_POINTS_PENDING: set[str] = {
-    "bayes",
-    "beam_model",
-    "landmark_pf",
-}
+#: Labs whose hidden tests do not yet refuse free points (their owner gates them next).
+FREE_POINTS_PENDING: set[str] = set()
 
 
 @functools.lru_cache(maxsize=None)
@@ -134,7 +139,7 @@ def _lost(result) -> list[str]:
 
 @pytest.mark.parametrize("lab", MUTANT_LABS)
 def test_the_catalogue_is_complete(lab):
-    """Each lab's suite has enough mistakes, on exercises of the lab, covering its classes."""
+    """Each lab's suite: enough mistakes on its exercises, its classes, and delegation."""
     mutants = build.mutants_of(lab)
     assert len(mutants) >= MIN_MUTANTS, (
         f"lab {lab}: expected at least {MIN_MUTANTS} mutants, got {len(mutants)}"
@@ -146,6 +151,13 @@ def test_the_catalogue_is_complete(lab):
     assert not untouched, f"lab {lab}: exercises without any mutant: {sorted(untouched)}"
     missing = APPLICABLE.get(lab, set()) - {m.kind for m in mutants}
     assert not missing, f"lab {lab}: mistake classes with no mutant: {sorted(missing)}"
+    delegated = {m.exercise for m in mutants if m.kind == "delegation"}
+    undelegated = sorted(e for e, names in FORBIDDEN.get(lab, {}).items() if names)
+    undelegated = [e for e in undelegated if e not in delegated]
+    assert not undelegated, (
+        f"lab {lab}: the library holds these exercises' answers (robolab/grading/delegation.py) "
+        f"but no delegating mutant shows that calling it loses the points: {undelegated}"
+    )
 
 
 @pytest.mark.parametrize("lab", MUTANT_LABS)
@@ -209,3 +221,24 @@ def test_free_points_notebooks_earn_nothing(lab, kind):
         f"lab {lab}: a notebook whose every exercise {kind} earned {result.total:g} points, "
         f"expected 0; passing: {kept}"
     )
+
+
+@pytest.mark.parametrize("lab", MUTANT_LABS)
+def test_failures_caused_by_another_exercise_point_to_it(lab):
+    """A correct exercise failing only because a function it uses is wrong says which one."""
+    checked = 0
+    for group, result in graded(lab)["packs"]:
+        mutated = {m.exercise for m in group}
+        for t in result.tests:
+            if t.passed or t.exercise in mutated:
+                continue
+            # this exercise is the solution's own code: only a mutated one it calls can break it
+            checked += 1
+            named = [e for e in mutated if f"`{e}`" in t.message and "may be because" in t.message]
+            assert named, (
+                f"lab {lab}: {t.exercise} is correct but failed {t.description!r} because "
+                f"{sorted(mutated)} are wrong; expected the feedback to point to them, got "
+                f"{t.message[-400:]!r}"
+            )
+    if lab in ("beam_model", "landmark_pf"):
+        assert checked, f"lab {lab}: expected some exercise to fail through a function it uses"
