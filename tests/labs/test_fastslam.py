@@ -378,41 +378,33 @@ def test_update_landmark_matches_a_hand_written_kalman_update(lab):
 
 @pytest.mark.grades("update_landmark", points=6)
 def test_update_landmark_wraps_the_bearing_error(lab):
-    """Bearings 3.1 measured and -3.1 predicted are 0.08 rad apart.
+    """Bearings 3.1 measured and -3.1 predicted: the same update as the seam-free geometry.
 
-    The update must wrap the error.
+    The bearings are 0.083 rad apart, not 6.2. Turned by pi about the robot the same
+    geometry reads -0.042 and 0.042 (no wrap needed): whatever the formulas, the update
+    must be the same, turned back (mean mirrored through the robot, covariance and
+    likelihood unchanged). Only an unwrapped bearing error fails this check.
     """
+    pose = np.array([0.5, -1.0, 0.0])
+    cov = np.array([[0.25, 0.05], [0.05, 0.16]])
     for measured, predicted in ((3.1, -3.1), (-3.1, 3.1)):
-        pose = np.array([0.5, -1.0, 0.0])
         mean = pose[:2] + 5.0 * np.array([np.cos(predicted), np.sin(predicted)])
-        cov = 0.25 * np.eye(2)
         z = np.array([5.0, measured])
         got_mean, got_cov, got_ll = (_f(v) for v in lab.update_landmark(mean, cov, z, pose, QT))
-        m, c, ll = _kalman(mean, cov, z, pose, QT)
-        # the bearings are 0.083 rad apart: the mean moves about 0.4 m, not by 6.2 rad
+        turned = (2 * pose[:2] - mean, np.array([5.0, _wrap(measured + np.pi)]))
+        ref_mean, ref_cov, ref_ll = (
+            _f(v) for v in lab.update_landmark(turned[0], cov, turned[1], pose, QT)
+        )
         assert np.hypot(*(got_mean - mean)) < 0.5, (
             f"bearing {measured} measured, {predicted} predicted: "
-            f"the mean jumped from {mean} to {got_mean}; "
-            "is the bearing error wrapped?"
+            f"the mean jumped from {mean} to {got_mean}; is the bearing error wrapped?"
         )
+        what = f"bearing {measured} measured, {predicted} predicted, against the update turned by pi"
         np.testing.assert_allclose(
-            got_mean,
-            m,
-            atol=1e-9,
-            err_msg="mean after a wrapped bearing error, against the textbook update",
+            got_mean, 2 * pose[:2] - ref_mean, atol=1e-9, err_msg=f"mean: {what}"
         )
-        np.testing.assert_allclose(
-            got_cov,
-            c,
-            atol=1e-9,
-            err_msg="covariance after a wrapped bearing error, against the textbook update",
-        )
-        np.testing.assert_allclose(
-            got_ll,
-            ll,
-            atol=1e-7,
-            err_msg="log-likelihood after a wrapped bearing error, against the textbook update",
-        )
+        np.testing.assert_allclose(got_cov, ref_cov, atol=1e-9, err_msg=f"covariance: {what}")
+        np.testing.assert_allclose(got_ll, ref_ll, atol=1e-9, err_msg=f"log-likelihood: {what}")
 
 
 @pytest.mark.grades("update_landmark", points=4)

@@ -295,15 +295,44 @@ def test_motion_model_turning(lab):
 
 @grades("sample_motion_model_odometry", points=4)
 def test_motion_model_across_the_pi_seam(lab):
-    """Odometry heading 3.0 rad, driving towards -3.0 rad and turning to -2.9: the deltas wrap.
+    """The same motion across the +-pi seam and away from it moves the particles alike.
 
-    rot1 = wrap(-3.0 - 3.0) = 0.283 and rot2 = wrap(-2.9 - 3.0 - rot1) = 0.1; unwrapped
-    deltas (-6.0, -6.18) would scale the noise by 2 pi-sized rotations.
+    From odometry heading 3.0 the robot drives towards -3.0 rad and turns to -2.9:
+    rot1 = wrap(-6.0) = 0.283, trans = 1, rot2 = 0.1, the very motion of heading 0.3
+    driving towards 0.583 and turning to 0.683. With the same random draws both must
+    move every particle identically (whatever the noise formula); unwrapped deltas
+    (-6.0, -6.18) scale the noise by 2 pi-sized rotations.
     """
-    prev = np.array([0.5, -0.3, 3.0])
-    now = np.array([0.5 + np.cos(-3.0), -0.3 + np.sin(-3.0), -2.9])
     rot1 = float(wrap_angle(-6.0))
-    _moments_test(lab, [1.0, 2.0, -2.0], prev, now, rot1, 1.0, 0.1, ALPHAS, seed=16)
+    seam = (np.array([0.5, -0.3, 3.0]), np.array([0.5 + np.cos(-3.0), -0.3 + np.sin(-3.0), -2.9]))
+    away = (
+        np.array([2.0, 1.0, 0.3]),
+        np.array([2.0 + np.cos(0.3 + rot1), 1.0 + np.sin(0.3 + rot1), 0.3 + rot1 + 0.1]),
+    )
+    rng = np.random.default_rng(16)
+    particles = np.column_stack([rng.uniform(-3, 3, (2000, 2)), rng.uniform(-np.pi, np.pi, 2000)])
+    a, b = (
+        _f(
+            lab.sample_motion_model_odometry(
+                particles, prev, now, ALPHAS, np.random.default_rng(17)
+            )
+        )
+        for prev, now in (seam, away)
+    )
+    np.testing.assert_allclose(
+        a[:, :2],
+        b[:, :2],
+        atol=1e-9,
+        err_msg="positions: the motion from heading 3.0 across the seam (rot1 = wrap(-6.0) = "
+        "0.283, "
+        "rot2 = 0.1) against the same motion from heading 0.3, same random draws",
+    )
+    np.testing.assert_allclose(
+        wrap_angle(a[:, 2] - b[:, 2]),
+        0.0,
+        atol=1e-9,
+        err_msg="headings: the same motion across the seam and away from it, same random draws",
+    )
 
 
 @grades("sample_motion_model_odometry", points=3)
