@@ -399,7 +399,7 @@ def test_update_landmark_wraps_the_bearing_error(lab):
             f"bearing {measured} measured, {predicted} predicted: "
             f"the mean jumped from {mean} to {got_mean}; is the bearing error wrapped?"
         )
-        what = f"bearing {measured} measured, {predicted} predicted, against the update turned by pi"
+        what = f"bearing {measured} measured, {predicted} predicted, against the turned update"
         np.testing.assert_allclose(
             got_mean, 2 * pose[:2] - ref_mean, atol=1e-9, err_msg=f"mean: {what}"
         )
