@@ -677,9 +677,12 @@ def test_ekf_step_prediction_linearizes_at_the_previous_mean(lab):
 
 @pytest.mark.grades("ekf_mapping_step", points=3)
 def test_ekf_step_wraps_a_corrected_heading_near_pi(lab):
-    """Predicted heading pi - 0.02, true heading pi + 0.15.
+    """A correction that turns the heading across +-pi: wrapped, and the same as away from pi.
 
-    The correction crosses pi and must wrap.
+    Predicted heading pi - 0.02, true heading pi + 0.15: the correction crosses pi.
+    The box world is symmetric under a half turn about its centre, so the same step
+    turned by pi (heading -0.02 towards 0.15, no wrap needed) must give the same
+    estimate turned back, whatever the formulas: only a missing wrap fails here.
     """
     box = OccupancyGrid(_box(), 1.0)
     prior = np.where(_box() > 0, 3.0, -1.0)
@@ -687,26 +690,42 @@ def test_ekf_step_wraps_a_corrected_heading_near_pi(lab):
     scan = np.clip(
         cast_rays(box, true, ANGLES, ZMAX)[0] + np.random.default_rng(8).normal(0, 0.2, 36), 0, ZMAX
     )
-    x0, cmd = np.array([20.0, 20.0, np.pi - 0.03]), (1.0, 0.1, 0.1)
-    x, p, _, unwrapped = _ekf_by_hand(box, x0, _P0, _Q, np.eye(36), scan, cmd)
+    cmd = (1.0, 0.1, 0.1)
+    x0 = np.array([20.013, 19.987, np.pi - 0.03])
+    turned = np.array([40.0 - x0[0], 40.0 - x0[1], x0[2] - np.pi])
+    _, _, _, unwrapped = _ekf_by_hand(box, x0, _P0, _Q, np.eye(36), scan, cmd)
     assert unwrapped[2] > np.pi, (
         f"test self-check: the correction must cross pi, got {unwrapped[2]}"
     )
-    state, cov, _ = lab.ekf_mapping_step(
-        (x0.copy(), _P0.copy(), _Q.copy(), np.eye(36)), prior.copy(), cmd[0], cmd[1], scan, cmd[2]
+    state, cov, ref, ref_cov = (
+        _f(v)
+        for x in (x0, turned)
+        for v in lab.ekf_mapping_step(
+            (x.copy(), _P0.copy(), _Q.copy(), np.eye(36)),
+            prior.copy(),
+            cmd[0],
+            cmd[1],
+            scan,
+            cmd[2],
+        )[:2]
     )
-    state = _f(state)
     assert -np.pi <= state[2] < np.pi, (
         f"corrected heading {state[2]:.4f} rad (true {true[2]:.4f}): must be wrapped to [-pi, pi)"
     )
+    mirrored = [40.0 - ref[0], 40.0 - ref[1], 0.0]
     np.testing.assert_allclose(
-        [*state[:2], wrap_angle(state[2] - x[2])],
-        [*x[:2], 0.0],
-        atol=0.03,
-        err_msg="state after the correction against Table 3.3 by hand (heading compared modulo 2 "
-        "pi; "
-        "tolerance 0.03 for the free choice of Jacobian steps: beams end near the box's corners "
-        "here)",
+        [state[0], state[1], wrap_angle(state[2] - ref[2] - np.pi)],
+        mirrored,
+        atol=1e-6,
+        err_msg="state after crossing pi against the same step turned by pi about the box's centre "
+        "(x, y mirrored, heading + pi)",
+    )
+    flip = np.diag([-1.0, -1.0, 1.0])
+    np.testing.assert_allclose(
+        cov,
+        flip @ ref_cov @ flip,
+        atol=1e-9,
+        err_msg="covariance after crossing pi against the same step turned by pi",
     )
 
 
