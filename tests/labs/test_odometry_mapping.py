@@ -679,7 +679,8 @@ def test_logodds_update_matches_table_9_2(lab):
     )
     bad = ~np.isclose(got, expected, atol=1e-9)
     assert not bad.any(), (
-        f"{bad.sum()} cells differ from Table 9.2, e.g. cell {tuple(np.argwhere(bad)[0])}"
+        f"{bad.sum()} cells differ from Table 9.2, e.g. cell {tuple(np.argwhere(bad)[0])}: "
+        f"expected {expected[bad][0]:.3f}, got {got[bad][0]:.3f}"
     )
 
 
@@ -744,25 +745,53 @@ def test_logodds_update_single_beam_profile(lab):
 
 @pytest.mark.grades("logodds_update", points=3)
 def test_logodds_update_table_9_2_at_headings_far_from_zero(lab):
-    """Table 9.2 cell by cell from lasers facing 2.8, -2.5 and 1.6 rad.
+    """A laser facing pi, pi/2 or -pi/2 maps like one facing 0 in the grid turned with it.
 
-    Bearings wrap around +-pi.
+    Bearings atan2(...) - theta then cross +-pi and must be wrapped. Turning the
+    whole world (grid and laser) by a multiple of pi/2 about the laser maps cells onto
+    cells, so the evidence must be the same array turned, whatever the inverse sensor
+    model's details: only unwrapped bearings fail here (Table 9.2 itself is checked
+    above).
     """
     rng = np.random.default_rng(RNG_SEED + 6)
-    grid = _grid(22, 26, 0.1, origin=(-1.3, -1.1, 0.0))
+    res, (rows, cols), (ox, oy) = 0.1, (22, 26), (-1.23, -1.07)
+    grid = _grid(rows, cols, res, origin=(ox, oy, 0.0))
     angles = np.linspace(-np.pi, np.pi, 24, endpoint=False) + 0.02
-    for heading in (2.8, -2.5, 1.6):
-        ranges = rng.uniform(0.3, 1.3, angles.size)
-        ranges[[4, 17]] = [np.inf, 1.5]  # no return, = range_max
-        scan = _scan(ranges, angles, range_min=0.05, range_max=1.5)
-        pose = np.array([0.02, -0.04, heading])
-        got = _f(lab.logodds_update(np.zeros(grid.shape), scan, pose, grid, PARAMS))
-        expected = _table_9_2(grid, scan, pose, PARAMS)
-        bad = ~np.isclose(got, expected, atol=1e-9)
+    ranges = rng.uniform(0.3, 1.3, angles.size)
+    ranges[[4, 17]] = [np.inf, 1.5]  # no return, = range_max
+    scan = _scan(ranges, angles, range_min=0.05, range_max=1.5)
+    # the same world turned so that the laser (at the origin) faces 0
+    turned = {
+        np.pi: (
+            _grid(rows, cols, res, origin=(-(ox + cols * res), -(oy + rows * res), 0.0)),
+            lambda b: b[::-1, ::-1],
+        ),
+        np.pi / 2: (
+            _grid(cols, rows, res, origin=(oy, -(ox + cols * res), 0.0)),
+            lambda b: b[::-1, :].T,
+        ),
+        -np.pi / 2: (
+            _grid(cols, rows, res, origin=(-(oy + rows * res), ox, 0.0)),
+            lambda b: b[:, ::-1].T,
+        ),
+    }
+    for heading, (grid_0, back) in turned.items():
+        got = _f(
+            lab.logodds_update(
+                np.zeros(grid.shape), scan, np.array([0.0, 0.0, heading]), grid, PARAMS
+            )
+        )
+        ref = back(
+            _f(lab.logodds_update(np.zeros(grid_0.shape), scan, np.zeros(3), grid_0, PARAMS))
+        )
+        assert np.any(ref != 0), "test self-check: the scan must change some cells"
+        bad = ~np.isclose(got, ref, atol=1e-9)
         assert not bad.any(), (
-            f"laser heading {heading} rad: {bad.sum()} of {bad.size} cells differ from Table 9.2, "
-            f"e.g. cell {tuple(np.argwhere(bad)[0]) if bad.any() else None}: expected "
-            f"{expected[bad][:1]}, got {got[bad][:1]}"
+            f"laser heading {heading:.4f} rad: {bad.sum()} of {bad.size} cells differ from the "
+            f"same "
+            f"scan facing 0 in the turned grid, e.g. cell "
+            f"{tuple(np.argwhere(bad)[0]) if bad.any() else None}: "
+            f"expected {ref[bad][:1]}, got {got[bad][:1]} (are the bearings wrapped?)"
         )
 
 
