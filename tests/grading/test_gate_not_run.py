@@ -15,7 +15,11 @@ import textwrap
 
 
 def test_a_gated_test_is_not_run_once_its_requirement_failed(tmp_path):
-    """The gated test's body never runs, it fails naming what it waits for; ungated ones run."""
+    """The gated test's body never runs, it fails naming what it waits for; others run.
+
+    A requirement that failed with NotImplementedError (a stub) does not skip: the gated
+    test runs and its feedback says "not implemented yet".
+    """
     labs = tmp_path / "tests" / "labs"
     labs.mkdir(parents=True)
     ran = tmp_path / "ran"
@@ -41,6 +45,17 @@ def test_a_gated_test_is_not_run_once_its_requirement_failed(tmp_path):
             def test_end_to_end():
                 '''The expensive run.'''
                 pathlib.Path({str(ran)!r}).joinpath("e2e").write_text("ran")
+
+            @pytest.mark.grades("f", points=1)
+            def test_stub():
+                '''Not written yet.'''
+                raise NotImplementedError
+
+            @pytest.mark.grades("f", points=1)
+            @pytest.mark.requires("test_stub")
+            def test_after_stub():
+                '''Gated on a stub: runs (and meets the stub's NotImplementedError again).'''
+                pathlib.Path({str(ran)!r}).joinpath("after_stub").write_text("ran")
 
             @pytest.mark.grades("f", points=1)
             @pytest.mark.requires("test_other")
@@ -77,6 +92,10 @@ def test_a_gated_test_is_not_run_once_its_requirement_failed(tmp_path):
     assert not (ran / "e2e").exists(), (
         f"test_end_to_end requires the failed test_core, so its body must not run; pytest said "
         f"{proc.stdout[-800:]}"
+    )
+    assert (ran / "after_stub").exists(), (
+        "a requirement that failed with NotImplementedError (a stub) must not skip the gated "
+        f"test (its feedback says 'not implemented yet'); pytest said {proc.stdout[-800:]}"
     )
     assert (ran / "other").exists() and (ran / "refusal").exists(), (
         "tests whose requirements passed (or that have none) must run; "

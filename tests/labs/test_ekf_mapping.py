@@ -676,6 +676,7 @@ def test_ekf_step_prediction_linearizes_at_the_previous_mean(lab):
 
 
 @pytest.mark.grades("ekf_mapping_step", points=3)
+@requires("test_ekf_step_equals_hand_written_ekf")
 def test_ekf_step_wraps_a_corrected_heading_near_pi(lab):
     """A correction that turns the heading across +-pi: wrapped, and the same as away from pi.
 

@@ -294,6 +294,7 @@ def test_motion_model_turning(lab):
 
 
 @grades("sample_motion_model_odometry", points=4)
+@requires("test_motion_model_straight", "test_motion_model_turning")
 def test_motion_model_across_the_pi_seam(lab):
     """The same motion across the +-pi seam and away from it moves the particles alike.
 

@@ -744,6 +744,7 @@ def test_logodds_update_single_beam_profile(lab):
 
 
 @pytest.mark.grades("logodds_update", points=3)
+@requires("test_logodds_update_matches_table_9_2")
 def test_logodds_update_table_9_2_at_headings_far_from_zero(lab):
     """A laser facing pi, pi/2 or -pi/2 maps like one facing 0 in the grid turned with it.
 
