@@ -17,7 +17,17 @@ import pytest
 
 LABS_DIR = Path(__file__).resolve().parent / "labs"
 #: Labs whose hidden tests follow the rules; a lab joins once its tests are rewritten.
-ENFORCED = ["frames", "bayes", "beam_model", "landmark_pf", "demo"]
+ENFORCED = [
+    "frames",
+    "bayes",
+    "beam_model",
+    "landmark_pf",
+    "demo",
+    "odometry_mapping",
+    "mcl",
+    "ekf_mapping",
+    "fastslam",
+]
 #: numpy.testing functions without an err_msg parameter.
 NO_ERR_MSG = {"assert_raises", "assert_raises_regex", "assert_warns", "assert_no_warnings"}
 

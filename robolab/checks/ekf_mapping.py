@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from robolab.checks.base import CheckFailed, check, expect_close, expect_shape
+from robolab.checks.base import CheckFailed, check, expect_close, expect_raises, expect_shape
 from robolab.maps import OccupancyGrid
 
 __all__ = [
@@ -118,6 +118,26 @@ def check_inverse_sensor_model(inverse_sensor_model):
     expect_close("the cell where the beam ends, row 10, column 8", out[10, 8], 1.0, atol=1e-9)
     expect_close("cells beyond the end, row 10, columns 9..", out[10, 9:], np.zeros(11), atol=1e-9)
     expect_close("a cell off the beam, row 12, column 6", out[12, 6], 0.0, atol=1e-9)
+    expect_raises(
+        "inverse_sensor_model with a NaN range",
+        ValueError,
+        inverse_sensor_model,
+        (20, 25),
+        [3.5, 10.5, 0.0],
+        [np.nan],
+        beam_angles=[0.0],
+        beam_width=0.2,
+    )
+    expect_raises(
+        "inverse_sensor_model with a negative range",
+        ValueError,
+        inverse_sensor_model,
+        (20, 25),
+        [3.5, 10.5, 0.0],
+        [-1.0],
+        beam_angles=[0.0],
+        beam_width=0.2,
+    )
 
 
 @check
@@ -132,6 +152,10 @@ def check_update_map(update_map):
     )
     expect_close("the cell 3 units ahead is where beam 0 ends", once[20, 23], 1.0, atol=1e-9)
     expect_close("the robot's own cell is free", once[20, 20], -0.2, atol=1e-9)
+    before = np.zeros((40, 40))
+    update_map(before, state, scan)
+    if np.any(before != 0):
+        raise CheckFailed("update_map changed the map passed in: return a new map (m + evidence)")
 
 
 @check

@@ -143,6 +143,8 @@ def check_fastslam_step(fastslam_step) -> None:
         resample=False,
     )
     _keys("fastslam_step", out)
+    if not np.all(state["means"][:, 0, 0] == 4.0 + np.array([0.0, 0.1, 0.2, 0.3])):
+        raise CheckFailed("fastslam_step changed the state passed in: work on copies")
     expect_shape("poses", out["poses"], (4, 3))
     means = expect_shape("means", out["means"], (4, 2, 2))
     w = expect_shape("weights", out["weights"], (4,))

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from robolab.checks.base import CheckFailed, check, expect_close, expect_shape
+from robolab.checks.base import CheckFailed, check, expect_close, expect_raises, expect_shape
 from robolab.maps import UNKNOWN, OccupancyGrid
 
 __all__ = [
@@ -178,6 +178,12 @@ def check_normalize_log_weights(normalize_log_weights):
         (2,),
     )
     expect_close("normalize_log_weights([-1000, -1000 + log 3])", w, [0.25, 0.75])
+    expect_raises(
+        "normalize_log_weights when every log-weight is -inf (every weight vanished)",
+        ValueError,
+        normalize_log_weights,
+        np.full(3, -np.inf),
+    )
 
 
 @check
@@ -226,9 +232,10 @@ def check_mcl_step(mcl_step):
         raise CheckFailed(
             f"after one update the mean should be near the true position {truth[:2]}, got {mean}"
         )
+    w_in = np.linspace(1.0, 2.0, 300) / np.linspace(1.0, 2.0, 300).sum()
     out = mcl_step(
         p,
-        w,
+        w_in,
         [0, 0, 0],
         [0.01, 0, 0],
         _scan_at(grid, truth),
@@ -238,6 +245,7 @@ def check_mcl_step(mcl_step):
     )
     if bool(out[2]):
         raise CheckFailed("a 1 cm motion is below update_min_d = 0.2 m: the filter must not update")
+    expect_close("weights returned without an update (the incoming ones)", out[1], w_in)
 
 
 @check
@@ -249,6 +257,11 @@ def check_kld_sample_size(kld_sample_size):
         "kld_sample_size(100, 0.05, 2.326)",
         kld_sample_size(100, 0.05, 2.326),
         math.ceil(99 / 0.1 * (1 - b + math.sqrt(b) * 2.326) ** 3),
+    )
+    expect_close(
+        "kld_sample_size(1, 0.05, 2.326): one bin needs one sample",
+        kld_sample_size(1, 0.05, 2.326),
+        1,
     )
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from robolab.checks.base import CheckFailed, check, expect_close, expect_shape
+from robolab.checks.base import CheckFailed, check, expect_close, expect_raises, expect_shape
 from robolab.maps import OccupancyGrid
 
 __all__ = [
@@ -51,6 +51,12 @@ def check_scan_endpoints(scan_endpoints):
     expect_close(
         "endpoints (laser at (1, 2.1), heading +y)", pts, [[1.0, 4.1], [0.0, 2.1]], atol=1e-9
     )
+    at_max = np.asarray(scan_endpoints(_scan([4.0], [0.0]), np.zeros(3), np.zeros(3)), dtype=float)
+    if at_max.size:
+        raise CheckFailed(
+            "a reading equal to range_max (4.0 here) is a max-range reading, not a hit: "
+            "keep only range_min <= r < range_max"
+        )
 
 
 @check
@@ -100,6 +106,12 @@ def check_counting_map_update(counting_map_update):
     )
     if np.any(hits > visits):
         raise CheckFailed("a hit must also count as a visit")
+    h0, v0 = np.ones((6, 6)), np.full((6, 6), 2.0)
+    counting_map_update(h0, v0, scan, np.array([0.5, 0.5, 0.0]), grid)
+    if np.any(h0 != 1.0) or np.any(v0 != 2.0):
+        raise CheckFailed(
+            "counting_map_update changed the hits / visits passed in: return new arrays"
+        )
 
 
 @check
@@ -107,6 +119,13 @@ def check_occupancy_from_counts(occupancy_from_counts):
     """hits / visits, and -1 where no beam came."""
     got = occupancy_from_counts(np.array([0.0, 1.0, 2.0]), np.array([0.0, 4.0, 2.0]))
     expect_close("occupancy_from_counts([0, 1, 2], [0, 4, 2])", got, [-1.0, 0.25, 1.0])
+    expect_raises(
+        "occupancy_from_counts with more hits than visits",
+        ValueError,
+        occupancy_from_counts,
+        np.array([2.0]),
+        np.array([1.0]),
+    )
 
 
 @check
@@ -114,6 +133,7 @@ def check_clip_map(clip_map):
     """Clipping at 0.5: unknown stays unknown."""
     got = clip_map(np.array([-1.0, 0.1, 0.5, 0.9]))
     expect_close("clip_map([-1, 0.1, 0.5, 0.9])", got, [-1.0, 0.0, 1.0, 1.0])
+    expect_raises("clip_map of an occupancy of 1.5", ValueError, clip_map, np.array([0.2, 1.5]))
 
 
 @check
@@ -135,6 +155,8 @@ def check_logodds_update(logodds_update):
         got, _scan([3.0], [0.0], 0.05, 4.5), np.array([0.0, 0.25, 0.0]), grid, params
     )
     expect_close("a second identical scan adds the same evidence again", twice, 2 * got)
+    if np.any(got[0] != [-1, -1, -1, -1, -1, 2, 2, 0, 0, 0]):
+        raise CheckFailed("logodds_update changed the log-odds passed in: return a new array")
 
 
 @check

@@ -66,6 +66,7 @@ FORBIDDEN: dict[str, dict[str, list[str]]] = {
         "scan_endpoints": ["robolab.bag.Scans.endpoints"],
     },
     "mcl": {
+        "likelihood_field": ["robolab.sim.clearance_field"],
         "low_variance_resample": [
             "filterpy.monte_carlo.systematic_resample",
             "filterpy.monte_carlo.stratified_resample",
@@ -76,6 +77,7 @@ FORBIDDEN: dict[str, dict[str, list[str]]] = {
     },
     "fastslam": {
         "predict_poses": ["robolab.fiducials.unicycle"],
+        "h": ["robolab.fiducials._range_bearing"],
     },
     "demo": {
         "wrap": ["robolab.geometry.wrap_angle", "robolab.geometry.angle_diff"],

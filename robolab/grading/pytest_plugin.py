@@ -211,6 +211,44 @@ def _check_requires(item: pytest.Item, names_by_module: dict[str, set[str]]) -> 
     return None
 
 
+# A gated test whose required tests already failed cannot pay: it is not run (an end-to-end
+# run of a broken filter can take a minute) and fails at once, naming what it waits for.
+_failed_key = pytest.StashKey[set]()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Iterator[None]:
+    report = yield
+    # A stub's NotImplementedError is cheap to meet again, and its feedback ("not implemented
+    # yet") is clearer than "not run": only other failures make the gated tests skip.
+    stub = call.excinfo is not None and call.excinfo.errisinstance(NotImplementedError)
+    if report.failed and not stub:
+        item.config.stash.setdefault(_failed_key, set()).add(
+            (item.nodeid.split("::")[0], _base_name(item))
+        )
+    return report
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
+    failed = pyfuncitem.config.stash.get(_failed_key, set())
+    module = pyfuncitem.nodeid.split("::")[0]
+    waiting = [n for n in required_of(pyfuncitem) if (module, n) in failed]
+    if waiting:
+        titles = {
+            _base_name(it): describe(it).split(" [")[0]
+            for it in pyfuncitem.session.items
+            if it.nodeid.split("::")[0] == module and _base_name(it) in waiting
+        }
+        pytest.fail(
+            "Not run: this check counts only when "
+            + ", ".join(f'"{titles.get(n, n)}"' for n in waiting)
+            + " also pass, and they fail; fix those first.",
+            pytrace=False,
+        )
+    return None
+
+
 def _is_hidden_test(item: pytest.Item) -> bool:
     folder = Path(str(item.path)).parent
     return folder.name == "labs" and folder.parent.name == "tests"

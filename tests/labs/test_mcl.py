@@ -33,7 +33,24 @@ from robolab.maps import UNKNOWN, OccupancyGrid
 from robolab.raycast import cast_rays
 
 grades = pytest.mark.grades
+requires = pytest.mark.requires
 
+#: Exercises each exercise is likely to call (the feedback names them when they fail).
+USES = {
+    "mcl_step": [
+        "sample_motion_model_odometry",
+        "likelihood_field_model",
+        "normalize_log_weights",
+        "low_variance_resample",
+    ],
+    "augmented_mcl_step": [
+        "sample_motion_model_odometry",
+        "likelihood_field_model",
+        "normalize_log_weights",
+        "low_variance_resample",
+        "init_uniform",
+    ],
+}
 ALPHAS = (0.01, 0.02, 0.03, 0.04)
 N_MOMENTS = 200_000
 #: Likelihood-model parameters of the synthetic tests.
@@ -127,11 +144,11 @@ def _model_oracle(scan, particles, field, z_hit, z_rand, laser_pose):
             row = math.floor((y - origin[1]) / res)
             inside = 0 <= row < dist.shape[0] and 0 <= col < dist.shape[1]
             d = dist[row, col] if inside else dmax
-            p = (
-                z_hit * math.exp(-0.5 * (d / sigma) ** 2) / (math.sqrt(2 * math.pi) * sigma)
-                + z_rand / zmax
-            )
-            out[m] += math.log(p)
+            log_gauss = -0.5 * (d / sigma) ** 2 - math.log(math.sqrt(2 * math.pi) * sigma)
+            if z_rand == 0:  # log form: log z_hit + log N, no exp that could underflow
+                out[m] += math.log(z_hit) + log_gauss
+            else:
+                out[m] += math.log(z_hit * math.exp(log_gauss) + z_rand / zmax)
     return out
 
 
@@ -145,12 +162,13 @@ def _scan_from(grid, pose, laser_pose, n_beams=90, range_max=6.0):
 # ======================================= init_uniform (8) =======================================
 @grades("init_uniform", points=5)
 def test_init_uniform_covers_free_cells_uniformly(lab):
+    """Uniform over the free space: only free cells, each equally often, uniform inside its cell."""
     rng = np.random.default_rng(1)
     data = rng.choice([0.0, 1.0, UNKNOWN], size=(8, 10), p=[0.6, 0.25, 0.15])
     grid = OccupancyGrid(data, 0.25, (1.0, -2.0, 0.0))
     n = 100_000
     p = _f(lab.init_uniform(grid, n, np.random.default_rng(2)))
-    assert p.shape == (n, 3)
+    assert p.shape == (n, 3), "init_uniform(grid, 100000, rng) must return (100000, 3) poses"
     rc = grid.world_to_cell(p[:, :2])
     assert np.all(grid.contains_cell(rc)), "particles outside the map"
     assert np.all(grid.free[rc[:, 0], rc[:, 1]]), "a particle lies in an occupied or unknown cell"
@@ -173,6 +191,7 @@ def test_init_uniform_covers_free_cells_uniformly(lab):
 
 @grades("init_uniform", points=3)
 def test_init_uniform_headings_and_input(lab):
+    """Headings uniform on [-pi, pi); n < 1 and a map without free cells raise ValueError."""
     grid = _room()
     p = _f(lab.init_uniform(grid, 50_000, np.random.default_rng(3)))
     th = p[:, 2]
@@ -188,11 +207,12 @@ def test_init_uniform_headings_and_input(lab):
 # ======================================= init_gaussian (6) =======================================
 @grades("init_gaussian", points=4)
 def test_init_gaussian_moments(lab):
+    """Sample mean and covariance (with correlations) of 100 000 particles match the Gaussian."""
     n = 100_000
     mean = np.array([2.0, -1.0, 0.5])
     cov = np.array([[0.04, 0.01, 0.0], [0.01, 0.09, 0.005], [0.0, 0.005, 0.02]])
     p = _f(lab.init_gaussian(mean, cov, n, np.random.default_rng(4)))
-    assert p.shape == (n, 3)
+    assert p.shape == (n, 3), "init_gaussian(mean, cov, 100000, rng) must return (100000, 3) poses"
     for k in range(3):
         _mean_ok(f"component {k}", p[:, k], mean[k], cov[k, k])
     emp = np.cov(p.T)
@@ -202,6 +222,10 @@ def test_init_gaussian_moments(lab):
 
 @grades("init_gaussian", points=2)
 def test_init_gaussian_wraps_and_validates(lab):
+    """Headings near pi wrap to [-pi, pi); zero covariance copies the pose.
+
+    A negative variance raises.
+    """
     p = _f(
         lab.init_gaussian(
             [0.0, 0.0, 3.1], np.diag([0.01, 0.01, 0.01]), 20_000, np.random.default_rng(5)
@@ -210,7 +234,12 @@ def test_init_gaussian_wraps_and_validates(lab):
     assert np.all((p[:, 2] >= -np.pi) & (p[:, 2] < np.pi)), "headings must be wrapped to [-pi, pi)"
     assert np.mean(p[:, 2] < 0) > 0.1, "headings near pi must wrap around to -pi"
     same = _f(lab.init_gaussian([1.0, 2.0, 0.3], np.zeros((3, 3)), 5, np.random.default_rng(6)))
-    np.testing.assert_allclose(same, _cloud(5, [1.0, 2.0, 0.3]), atol=1e-12)
+    np.testing.assert_allclose(
+        same,
+        _cloud(5, [1.0, 2.0, 0.3]),
+        atol=1e-12,
+        err_msg="cov = 0: every particle is the pose (1, 2, 0.3)",
+    )
     with pytest.raises(ValueError):
         lab.init_gaussian([0, 0, 0], np.diag([1.0, -1.0, 1.0]), 10, np.random.default_rng(0))
 
@@ -229,7 +258,7 @@ def _moments_test(
             corrected=corrected,
         )
     )
-    assert moved.shape == (N_MOMENTS, 3)
+    assert moved.shape == (N_MOMENTS, 3), "the moved particles must keep the shape (N, 3)"
     a1, a2, a3, a4 = alphas
     r1, t, r2 = _recover(np.asarray(start, float), moved)
     var = (
@@ -246,25 +275,74 @@ def _moments_test(
         _var_ok(name, s, v)
 
 
-@grades("sample_motion_model_odometry", points=5)
+@grades("sample_motion_model_odometry", points=4)
 def test_motion_model_straight(lab):
     # odometry drives 1 m straight at heading 0.3 rad; particles face 0.7 rad elsewhere
+    """1 m straight ahead: mean and variance of rot1, trans, rot2 as Table 5.6 gives them."""
     prev = np.array([1.0, 2.0, 0.3])
     now = prev + np.array([np.cos(0.3), np.sin(0.3), 0.0])
     _moments_test(lab, [5.0, -3.0, 0.7], prev, now, 0.0, 1.0, 0.0, ALPHAS, seed=10)
 
 
-@grades("sample_motion_model_odometry", points=5)
+@grades("sample_motion_model_odometry", points=4)
 def test_motion_model_turning(lab):
     # rot1 = 0.5, trans = 1.2, rot2 = 0.4 in the odom frame; the particle faces -2.5 rad
+    """rot1 = 0.5, trans = 1.2, rot2 = 0.4, particle facing -2.5 rad: Table 5.6's moments."""
     prev = np.array([-1.0, 0.5, 1.0])
     now = np.array([-1.0 + 1.2 * np.cos(1.5), 0.5 + 1.2 * np.sin(1.5), 1.9])
     _moments_test(lab, [0.0, 0.0, -2.5], prev, now, 0.5, 1.2, 0.4, ALPHAS, seed=11)
 
 
 @grades("sample_motion_model_odometry", points=4)
+@requires("test_motion_model_straight", "test_motion_model_turning")
+def test_motion_model_across_the_pi_seam(lab):
+    """The same motion across the +-pi seam and away from it moves the particles alike.
+
+    From odometry heading 3.0 the robot drives towards -3.0 rad and turns to -2.9:
+    rot1 = wrap(-6.0) = 0.283, trans = 1, rot2 = 0.1, the very motion of heading 0.3
+    driving towards 0.583 and turning to 0.683. With the same random draws both must
+    move every particle identically (whatever the noise formula); unwrapped deltas
+    (-6.0, -6.18) scale the noise by 2 pi-sized rotations.
+    """
+    rot1 = float(wrap_angle(-6.0))
+    seam = (np.array([0.5, -0.3, 3.0]), np.array([0.5 + np.cos(-3.0), -0.3 + np.sin(-3.0), -2.9]))
+    away = (
+        np.array([2.0, 1.0, 0.3]),
+        np.array([2.0 + np.cos(0.3 + rot1), 1.0 + np.sin(0.3 + rot1), 0.3 + rot1 + 0.1]),
+    )
+    rng = np.random.default_rng(16)
+    particles = np.column_stack([rng.uniform(-3, 3, (2000, 2)), rng.uniform(-np.pi, np.pi, 2000)])
+    a, b = (
+        _f(
+            lab.sample_motion_model_odometry(
+                particles, prev, now, ALPHAS, np.random.default_rng(17)
+            )
+        )
+        for prev, now in (seam, away)
+    )
+    np.testing.assert_allclose(
+        a[:, :2],
+        b[:, :2],
+        atol=1e-9,
+        err_msg="positions: the motion from heading 3.0 across the seam (rot1 = wrap(-6.0) = "
+        "0.283, "
+        "rot2 = 0.1) against the same motion from heading 0.3, same random draws",
+    )
+    np.testing.assert_allclose(
+        wrap_angle(a[:, 2] - b[:, 2]),
+        0.0,
+        atol=1e-9,
+        err_msg="headings: the same motion across the seam and away from it, same random draws",
+    )
+
+
+@grades("sample_motion_model_odometry", points=3)
 def test_motion_model_in_place_rotation_guard(lab):
     # 4 mm sideways (< 0.01 m) while turning 0.8 rad: AMCL sets rot1 = 0, so rot2 = 0.8
+    """4 mm of translation while turning 0.8 rad.
+
+    rot1 = 0 (AMCL's in-place guard), no sideways motion.
+    """
     a1, a2, a3, a4 = ALPHAS
     prev = np.array([2.0, 1.0, 0.2])
     now = np.array([2.0 + 0.004 * np.cos(1.9), 1.0 + 0.004 * np.sin(1.9), 1.0])
@@ -286,10 +364,14 @@ def test_motion_model_in_place_rotation_guard(lab):
     )
 
 
-@grades("sample_motion_model_odometry", points=4)
+@grades("sample_motion_model_odometry", points=3)
 def test_motion_model_corrected_reverse_motion(lab):
     # 1 m straight backwards: rot1 = -pi, rot2 = -pi (mod 2 pi). AMCL's corrected model uses
     # min(|rot|, |pi - |rot||) = 0 in the noise; the plain model uses pi.
+    """1 m backwards: the corrected model treats it like forward motion in the noise.
+
+    The plain one does not.
+    """
     a1, a2, a3, a4 = ALPHAS
     prev, now = np.array([0.0, 0.0, 0.0]), np.array([-1.0, 0.0, 0.0])
     for corrected, v_head, v_trans in (
@@ -324,6 +406,10 @@ def test_motion_model_corrected_reverse_motion(lab):
 
 @grades("sample_motion_model_odometry", points=2)
 def test_motion_model_noise_free_and_bad_input(lab):
+    """Without noise a particle moves as the odometry did, in its own frame.
+
+    Bad shapes and alphas raise.
+    """
     rng = np.random.default_rng(14)
     particles = np.column_stack([rng.uniform(-5, 5, (50, 2)), rng.uniform(-np.pi, np.pi, 50)])
     prev, now = np.array([0.3, -0.2, 2.9]), np.array([1.1, 0.4, -2.8])
@@ -343,8 +429,18 @@ def test_motion_model_noise_free_and_bad_input(lab):
         ),
         now,
     )
-    np.testing.assert_allclose(moved[:, :2], compose(particles, rel)[:, :2], atol=1e-9)
-    np.testing.assert_allclose(np.cos(moved[:, 2] - compose(particles, rel)[:, 2]), 1.0, atol=1e-9)
+    np.testing.assert_allclose(
+        moved[:, :2],
+        compose(particles, rel)[:, :2],
+        atol=1e-9,
+        err_msg="noise-free: positions = compose(particle, odometry motion in the odom frame)",
+    )
+    np.testing.assert_allclose(
+        np.cos(moved[:, 2] - compose(particles, rel)[:, 2]),
+        1.0,
+        atol=1e-9,
+        err_msg="noise-free: headings = particle heading + odometry heading change (modulo 2 pi)",
+    )
     assert np.all((moved[:, 2] >= -np.pi) & (moved[:, 2] < np.pi)), "headings must be wrapped"
     with pytest.raises(ValueError):
         lab.sample_motion_model_odometry(
@@ -359,6 +455,10 @@ def test_motion_model_noise_free_and_bad_input(lab):
 # ===================================== likelihood_field (12) ======================================
 @grades("likelihood_field", points=8)
 def test_likelihood_field_matches_brute_force(lab):
+    """Distances in metres to the nearest occupied cell, clipped at max_dist.
+
+    Checked against a brute-force distance.
+    """
     rng = np.random.default_rng(20)
     for trial, (res, origin, max_dist) in enumerate(
         [(0.1, (-1.0, 2.0, 0.0), 0.7), (0.05, (3.0, -4.0, 0.0), 0.3), (0.25, (0.0, 0.0, 0.0), 10.0)]
@@ -375,20 +475,36 @@ def test_likelihood_field_matches_brute_force(lab):
             atol=1e-9,
             err_msg=f"distance in metres (resolution {res}) clipped at {max_dist}",
         )
-        assert float(field["resolution"]) == res
-        np.testing.assert_allclose(_f(field["origin"]), origin)
+        assert float(field["resolution"]) == res, "field['resolution'] must be the grid's"
+        np.testing.assert_allclose(
+            _f(field["origin"]), origin, err_msg="field['origin'] must be the grid's origin"
+        )
 
 
 @grades("likelihood_field", points=4)
 def test_likelihood_field_gaussian_and_edge_cases(lab):
+    """The likelihood is the Gaussian of the distance.
+
+    A map without obstacles is max_dist everywhere.
+    """
     grid = _room()
     field = lab.likelihood_field(grid, 0.15, 0.5)
     d = _f(field["distance"])
-    assert d.shape == grid.shape
-    assert d.max() == pytest.approx(0.5) and d[grid.occupied].max() == 0.0
+    assert d.shape == grid.shape, "field['distance'] must have the grid's shape"
+    assert d.max() == pytest.approx(0.5) and d[grid.occupied].max() == 0.0, (
+        "distances: max_dist 0.5 away from walls, 0 on occupied cells"
+    )
     expected = np.exp(-0.5 * (d / 0.15) ** 2) / (math.sqrt(2 * math.pi) * 0.15)
-    np.testing.assert_allclose(_f(field["likelihood"]), expected, rtol=1e-9)
-    assert float(field["sigma_hit"]) == 0.15 and float(field["max_dist"]) == 0.5
+    np.testing.assert_allclose(
+        _f(field["likelihood"]),
+        expected,
+        rtol=1e-9,
+        err_msg="field['likelihood'] = N(d; 0, sigma_hit^2) = exp(-d^2 / 2 sigma^2) / (sqrt(2 "
+        "pi) sigma)",
+    )
+    assert float(field["sigma_hit"]) == 0.15 and float(field["max_dist"]) == 0.5, (
+        "field['sigma_hit'] and field['max_dist'] must be the values passed (0.15, 0.5)"
+    )
     empty = lab.likelihood_field(OccupancyGrid(np.zeros((5, 6)), 0.1), 0.2, 0.8)
     np.testing.assert_allclose(
         _f(empty["distance"]), 0.8, err_msg="no obstacle: distance = max_dist everywhere"
@@ -401,8 +517,12 @@ def test_likelihood_field_gaussian_and_edge_cases(lab):
 LASER = np.array([0.1, 0.05, 0.3])
 
 
-@grades("likelihood_field_model", points=6)
+@grades("likelihood_field_model", points=5)
 def test_model_matches_table_6_3_oracle(lab):
+    """Log-likelihoods of 40 particles equal Table 6.3 beam by beam.
+
+    Max-range and invalid beams are skipped; endpoints off the map count as d = max_dist.
+    """
     grid = _room()
     field = _field(grid, 0.1, 1.0)
     rng = np.random.default_rng(30)
@@ -416,14 +536,20 @@ def test_model_matches_table_6_3_oracle(lab):
     scan = {"ranges": ranges, "angles": angles, "range_min": 0.05, "range_max": 6.0}
     params = {**MODEL, "laser_pose": LASER}
     got = _f(lab.likelihood_field_model(scan, particles, field, params))
-    assert got.shape == (40,)
+    assert got.shape == (40,), "one log-likelihood per particle: shape (40,)"
     np.testing.assert_allclose(
-        got, _model_oracle(scan, particles, field, 0.9, 0.1, LASER), rtol=1e-6, atol=1e-6
+        got,
+        _model_oracle(scan, particles, field, 0.9, 0.1, LASER),
+        rtol=1e-6,
+        atol=1e-6,
+        err_msg="Table 6.3 beam by beam: sum of log(z_hit N(d) + z_rand / z_max) over the valid "
+        "beams",
     )
 
 
-@grades("likelihood_field_model", points=3)
+@grades("likelihood_field_model", points=2)
 def test_model_invariant_to_particle_order(lab):
+    """Permuting the particles permutes their log-likelihoods, nothing else."""
     grid = _room()
     field = _field(grid, 0.1, 1.0)
     rng = np.random.default_rng(31)
@@ -439,11 +565,16 @@ def test_model_invariant_to_particle_order(lab):
         logw[perm],
         rtol=1e-12,
         atol=1e-9,
+        err_msg="permuted particles must get the permuted log-likelihoods",
     )
 
 
 @grades("likelihood_field_model", points=4)
 def test_model_highest_at_true_pose(lab):
+    """The true pose scores highest among perturbed poses.
+
+    It does so only with params['laser_pose'] applied.
+    """
     grid = _room()
     field = _field(grid, 0.1, 1.0)
     rng = np.random.default_rng(32)
@@ -466,8 +597,73 @@ def test_model_highest_at_true_pose(lab):
         assert logw0[0] < logw[min(100, len(others))] - 1.0, "params['laser_pose'] must be applied"
 
 
-@grades("likelihood_field_model", points=5)
+@grades("likelihood_field_model", points=3)
+def test_model_log_form_when_a_mixture_term_vanishes(lab):
+    """z_rand = 0 with endpoints 60 sigma from any wall, and 720 beams off the map: finite, exact.
+
+    Each Gaussian is then exp(-1800), 0.0 in float64, and a product of 720 beam
+    likelihoods of 0.017 is 1e-1280: the model must sum logs, never take the log
+    of a product or of an underflowed Gaussian.
+    """
+    grid = _room()
+    field = _field(grid, 0.05, 3.0)
+    rng = np.random.default_rng(33)
+    particles = np.column_stack(
+        [rng.uniform(0.0, 4.5, 30), rng.uniform(1.0, 4.0, 30), rng.uniform(-np.pi, np.pi, 30)]
+    )
+    particles[:5, :2] += [40.0, -30.0]  # far off the map: every endpoint at max_dist
+    angles = np.linspace(-2.5, 2.5, 41)
+    scan = {
+        "ranges": rng.uniform(0.2, 5.5, 41),
+        "angles": angles,
+        "range_min": 0.05,
+        "range_max": 6.0,
+    }
+    params = {"z_hit": 0.8, "z_rand": 0.0, "laser_pose": LASER}
+    got = _f(lab.likelihood_field_model(scan, particles, field, params))
+    expected = _model_oracle(scan, particles, field, 0.8, 0.0, LASER)
+    assert np.all(np.isfinite(got)), (
+        f"z_rand = 0, sigma_hit = 0.05, max_dist = 3: log-likelihoods must be finite "
+        f"(log z_hit + log N(d)), got {got[~np.isfinite(got)][:3]}"
+    )
+    np.testing.assert_allclose(
+        got,
+        expected,
+        rtol=1e-6,
+        atol=1e-4,
+        err_msg="z_rand = 0: sum over beams of log z_hit - d^2 / (2 sigma^2) - log(sqrt(2 pi) "
+        "sigma)",
+    )
+    many = {
+        "ranges": np.full(720, 5.0),
+        "angles": np.linspace(-np.pi, np.pi, 720, endpoint=False),
+        "range_min": 0.05,
+        "range_max": 6.0,
+    }
+    far = np.array([[50.0, -40.0, 0.3]])
+    got = _f(
+        lab.likelihood_field_model(
+            many, far, _field(grid, 0.1, 1.0), {**MODEL, "laser_pose": LASER}
+        )
+    )
+    worst = 720 * math.log(
+        0.9 * math.exp(-0.5 * (1.0 / 0.1) ** 2) / (math.sqrt(2 * math.pi) * 0.1) + 0.1 / 6.0
+    )
+    np.testing.assert_allclose(
+        got,
+        [worst],
+        rtol=1e-6,
+        err_msg="720 beams off the map: 720 log(z_hit N(max_dist) + z_rand / z_max), not "
+        "log(product)",
+    )
+
+
+@grades("likelihood_field_model", points=4)
 def test_model_off_map_and_max_range_beams(lab):
+    """Max-range and invalid beams carry no information.
+
+    Endpoints off the map score as d = max_dist.
+    """
     grid = _room()
     field = _field(grid, 0.1, 1.0)
     params = {**MODEL, "laser_pose": LASER}
@@ -506,14 +702,40 @@ def test_model_off_map_and_max_range_beams(lab):
 
 
 # ================================== normalize_log_weights (4) ====================================
-@grades("normalize_log_weights", points=4)
+@grades("normalize_log_weights", points=1)
+def test_normalize_log_weights_refuses_all_zero_weights(lab):
+    """Every log-weight -inf (every weight vanished) raises ValueError instead of returning NaN."""
+    ok = _f(lab.normalize_log_weights(np.array([-np.inf, -5.0, -np.inf])))
+    np.testing.assert_allclose(
+        ok,
+        [0.0, 1.0, 0.0],
+        atol=1e-12,
+        err_msg="one finite log-weight among -inf takes all the weight",
+    )
+    with pytest.raises(ValueError):
+        lab.normalize_log_weights(np.full(4, -np.inf))
+
+
+@grades("normalize_log_weights", points=3)
 def test_normalize_log_weights_without_underflow(lab):
+    """Log-weights around -1000 normalize without underflow (subtract the maximum); NaN raises."""
     logw = np.array([-1000.0, -1001.0, -1002.5, -np.inf, -999.0])
     w = _f(lab.normalize_log_weights(logw))
     e = np.exp(logw - logw.max())
-    np.testing.assert_allclose(w, e / e.sum(), rtol=1e-12)
-    assert w[3] == 0.0 and w.sum() == pytest.approx(1.0, abs=1e-12)
-    np.testing.assert_allclose(_f(lab.normalize_log_weights(np.full(4, 800.0))), 0.25)
+    np.testing.assert_allclose(
+        w,
+        e / e.sum(),
+        rtol=1e-12,
+        err_msg="weights = exp(l - max l) / sum for log-weights around -1000",
+    )
+    assert w[3] == 0.0 and w.sum() == pytest.approx(1.0, abs=1e-12), (
+        "a log-weight of -inf gives weight 0 and the weights sum to 1"
+    )
+    np.testing.assert_allclose(
+        _f(lab.normalize_log_weights(np.full(4, 800.0))),
+        0.25,
+        err_msg="four equal log-weights of 800 (exp overflows): 1/4 each",
+    )
     with pytest.raises(ValueError):
         lab.normalize_log_weights(np.array([0.0, np.nan]))
 
@@ -521,18 +743,24 @@ def test_normalize_log_weights_without_underflow(lab):
 # ================================== low_variance_resample (3) ====================================
 @grades("low_variance_resample", points=3)
 def test_low_variance_resample_counts(lab):
+    """Low-variance resampling takes each particle N w_i times when N w_i is an integer."""
     particles = np.column_stack([np.arange(8.0), np.zeros(8), np.zeros(8)])
     w = np.array([0.0, 0.5, 0.125, 0.125, 0.0, 0.25, 0.0, 0.0])
     out = _f(lab.low_variance_resample(particles, w, np.random.default_rng(40)))
-    assert out.shape == (8, 3)
+    assert out.shape == (8, 3), "resampling 8 particles must return 8 particles of shape (8, 3)"
     counts = np.bincount(out[:, 0].astype(int), minlength=8)
     # Table 4.4 takes particle i floor(N w_i) or ceil(N w_i) times: here exactly N w_i
-    np.testing.assert_array_equal(counts, [0, 4, 1, 1, 0, 2, 0, 0])
+    np.testing.assert_array_equal(
+        counts,
+        [0, 4, 1, 1, 0, 2, 0, 0],
+        err_msg="weights [0, 1/2, 1/8, 1/8, 0, 1/4, 0, 0] over 8 particles: counts N w_i",
+    )
 
 
 # ======================================== mcl_step (17) ==========================================
 @grades("mcl_step", points=3)
 def test_mcl_step_update_thresholds_and_resample_interval(lab):
+    """update_min_d / update_min_a gate the update; resample_interval decides when to resample."""
     grid = _room()
     field = _field(grid, 0.1, 1.0)
     scan = _scan_from(grid, [2.0, 2.5, 0.4], LASER)
@@ -551,7 +779,9 @@ def test_mcl_step_update_thresholds_and_resample_interval(lab):
     assert not bool(out[2]), (
         "moved 5 cm and turned 0.1 rad: below update_min_d / update_min_a, no update"
     )
-    np.testing.assert_allclose(_f(out[0]), p)
+    np.testing.assert_allclose(
+        _f(out[0]), p, err_msg="no update: the particles are returned unchanged"
+    )
     # moved enough, resample_interval 2, first update: weighted but not resampled
     big = np.array([0.3, 0.0, 0.0])
     out = lab.mcl_step(
@@ -564,7 +794,7 @@ def test_mcl_step_update_thresholds_and_resample_interval(lab):
         {**base, "resample_interval": 2, "update_count": 0},
         np.random.default_rng(52),
     )
-    assert bool(out[2])
+    assert bool(out[2]), "moved 0.3 m, above update_min_d = 0.2: the filter must update"
     moved, weights = _f(out[0]), _f(out[1])
     np.testing.assert_allclose(
         moved[:, :2],
@@ -572,7 +802,9 @@ def test_mcl_step_update_thresholds_and_resample_interval(lab):
         atol=1e-9,
         err_msg="noise-free motion, no resampling: particles keep their order",
     )
-    assert weights.sum() == pytest.approx(1.0) and np.ptp(weights) > 0
+    assert weights.sum() == pytest.approx(1.0) and np.ptp(weights) > 0, (
+        "weighted but not resampled: weights sum to 1 and are not all equal"
+    )
     # second update: resampled, uniform weights
     out = lab.mcl_step(
         p,
@@ -584,7 +816,54 @@ def test_mcl_step_update_thresholds_and_resample_interval(lab):
         {**base, "resample_interval": 2, "update_count": 1},
         np.random.default_rng(53),
     )
-    np.testing.assert_allclose(_f(out[1]), 1 / 50)
+    np.testing.assert_allclose(
+        _f(out[1]), 1 / 50, err_msg="second update with resample_interval 2: resampled, weights 1/N"
+    )
+
+
+@grades("mcl_step", points=3)
+def test_mcl_step_multiplies_and_carries_incoming_weights(lab):
+    """Non-uniform weights in: w_new ~ w_old p(z | x) without resampling; no update keeps them.
+
+    Also a turn from 3.1 to -3.1 rad (0.08 rad, not 6.2) stays below update_min_a.
+    """
+    grid = _room()
+    field = _field(grid, 0.1, 1.0)
+    scan = _scan_from(grid, [2.0, 2.5, 0.4], LASER)
+    rng = np.random.default_rng(54)
+    p = np.array([2.0, 2.5, 0.4]) + rng.normal(0, 0.1, (40, 3))
+    w = rng.dirichlet(np.full(40, 0.3))
+    base = {**MODEL, "laser_pose": LASER, "alphas": (0, 0, 0, 0), "resample_interval": 3}
+    prev, now = np.zeros(3), np.array([0.3, 0.0, 0.0])
+    out = lab.mcl_step(p, w, prev, now, scan, field, base, np.random.default_rng(55))
+    moved = p.copy()
+    moved[:, :2] += 0.3 * np.column_stack([np.cos(p[:, 2]), np.sin(p[:, 2])])
+    logw = np.log(w) + _model_oracle(scan, moved, field, 0.9, 0.1, LASER)
+    expected = np.exp(logw - logw.max())
+    np.testing.assert_allclose(
+        _f(out[1]),
+        expected / expected.sum(),
+        rtol=1e-3,
+        atol=1e-9,
+        err_msg="update without resampling: new weights = old weights * likelihood, normalized",
+    )
+    gated = {**base, "update_min_d": 0.2, "update_min_a": 0.5}
+    for small in (np.array([0.05, 0.0, 0.1]), None):
+        if small is None:  # heading 3.1 -> -3.1: turned 0.083 rad, below update_min_a
+            prev, small = np.array([0.0, 0.0, 3.1]), np.array([0.05, 0.0, -3.1])
+        out = lab.mcl_step(p, w, prev, small, scan, field, gated, np.random.default_rng(56))
+        assert not bool(out[2]), (
+            f"odometry {prev} -> {small}: moved 5 cm, turned "
+            f"{abs(wrap_angle(small[2] - prev[2])):.3f} "
+            "rad, below update_min_d = 0.2 / update_min_a = 0.5: expected updated = False"
+        )
+        np.testing.assert_allclose(
+            _f(out[1]),
+            w / w.sum(),
+            rtol=1e-9,
+            err_msg="without an update the incoming weights are returned unchanged",
+        )
+        prev = np.zeros(3)
 
 
 @pytest.fixture(scope="module")
@@ -634,11 +913,31 @@ def _run(lab, bag, field, particles, seed, every, t_end, params=None):
     )
 
 
-@grades("mcl_step", points=8)
+#: The end-to-end runs of mcl_step count only when mcl_step's own parts and the pieces it is
+#: made of (the student's motion and measurement models, normalization, resampling) pass.
+MCL_PIECES = (
+    "test_mcl_step_update_thresholds_and_resample_interval",
+    "test_mcl_step_multiplies_and_carries_incoming_weights",
+    "test_motion_model_straight",
+    "test_motion_model_turning",
+    "test_motion_model_across_the_pi_seam",
+    "test_model_matches_table_6_3_oracle",
+    "test_model_log_form_when_a_mixture_term_vanishes",
+    "test_normalize_log_weights_without_underflow",
+    "test_low_variance_resample_counts",
+)
+
+
+@grades("mcl_step", points=6)
+@requires(*MCL_PIECES)
 def test_mcl_tracking_on_the_bag(lab, bag, bag_field):
     # Tracking from a Gaussian around the true start (10 cm, 0.1 rad): after the first 5 s the
     # estimate stays within 0.25 m (Nav2's localization test) and 0.2 rad of the ground truth.
     # 500 particles, every 2nd scan (5 Hz), 60 beams: the reference stays within 0.08 m.
+    """Tracking on the bag from a Gaussian start.
+
+    It stays within 0.25 m and 0.2 rad of the truth after 5 s.
+    """
     p0 = np.asarray(bag.truth[0]) + np.random.default_rng(60).normal(0, 0.1, (500, 3))
     t, pos, head = _run(lab, bag, bag_field, p0, seed=61, every=2, t_end=bag.t[-1])
     late = t >= 5.0
@@ -658,7 +957,8 @@ GLOBAL_PARAMS = {"alphas": (0.3, 0.3, 0.3, 0.3), "z_hit": 0.9, "z_rand": 0.1, "m
 GLOBAL_SIGMA = 0.3
 
 
-@grades("mcl_step", points=6)
+@grades("mcl_step", points=5)
+@requires(*MCL_PIECES)
 def test_mcl_global_localization_converges(lab, bag):
     # Global localization from a uniform start (GLOBAL_N particles) at the bag's start, in an
     # office that looks like three others: by 45 s the best hypothesis must be within 0.25 m and
@@ -667,6 +967,10 @@ def test_mcl_global_localization_converges(lab, bag):
     # 41.4 s in 17 of 20 seeds and never in 3 (it kept a look-alike office). So the test passes
     # when one of four seeded runs converges: a correct filter fails all four with probability
     # about 0.15^4 = 5e-4; a broken one (no resampling, no laser offset...) never converges.
+    """Global localization from a uniform start converges to the true pose by 45 s.
+
+    One of four seeded runs must converge (see the comment above for the odds).
+    """
     grid = bag.grid
     field = _field(grid, GLOBAL_SIGMA, BAG_MAX_DIST)
     rows, cols = np.nonzero(grid.free)
@@ -707,8 +1011,21 @@ def _amcl_resample_limit(k, pop_err, pop_z, min_samples, max_samples):
     return min(max(n, min_samples), max_samples)
 
 
-@grades("kld_sample_size", points=3)
+@grades("kld_sample_size", points=1)
+@requires("test_kld_sample_size_closed_form")
+def test_kld_sample_size_single_bin(lab):
+    """One occupied bin needs one particle (k - 1 = 0: the bound is 0, at least 1 sample)."""
+    for eps, z in ((0.05, 2.326), (0.01, 0.99)):
+        got = float(lab.kld_sample_size(1, eps, z))
+        assert got == 1, f"kld_sample_size(1, {eps}, {z}): expected 1, got {got}"
+
+
+@grades("kld_sample_size", points=2)
 def test_kld_sample_size_closed_form(lab):
+    """The Wilson-Hilferty bound of Table 8.4 for several k, epsilon and z.
+
+    More bins need more particles.
+    """
     for eps, z in ((0.05, 2.326), (0.01, 0.99), (0.2, 1.645)):
         for k in (2, 3, 5, 10, 37, 100, 1000):
             b = 2 / (9 * (k - 1))
@@ -717,13 +1034,18 @@ def test_kld_sample_size_closed_form(lab):
                 f"k = {k}, epsilon = {eps}, z = {z}"
             )
     # more bins, or a tighter bound, need more particles
-    assert float(lab.kld_sample_size(50, 0.05, 2.326)) > float(lab.kld_sample_size(10, 0.05, 2.326))
-    assert float(lab.kld_sample_size(10, 0.01, 2.326)) > float(lab.kld_sample_size(10, 0.05, 2.326))
+    assert float(lab.kld_sample_size(50, 0.05, 2.326)) > float(
+        lab.kld_sample_size(10, 0.05, 2.326)
+    ), "50 occupied bins must need more particles than 10"
+    assert float(lab.kld_sample_size(10, 0.01, 2.326)) > float(
+        lab.kld_sample_size(10, 0.05, 2.326)
+    ), "a tighter bound (epsilon 0.01) must need more particles than epsilon 0.05"
 
 
 @grades("kld_sample_size", points=3)
 def test_kld_sample_size_equals_amcl_resample_limit(lab):
     # AMCL's defaults: kld_err 0.01, kld_z 0.99, min_particles 100, max_particles 5000
+    """Clamped to [100, 5000] it equals AMCL's pf_resample_limit; epsilon = 0 raises."""
     for k in (2, 4, 8, 16, 30, 64, 128, 256, 512):
         n = float(lab.kld_sample_size(k, 0.01, 0.99))
         assert min(max(n, 100), 5000) == _amcl_resample_limit(k, 0.01, 0.99, 100, 5000), f"k = {k}"
@@ -732,8 +1054,91 @@ def test_kld_sample_size_equals_amcl_resample_limit(lab):
 
 
 # =================================== augmented_mcl_step (6) ======================================
-@grades("augmented_mcl_step", points=6)
+@grades("augmented_mcl_step", points=2)
+def test_augmented_mcl_running_averages_equal_the_formula(lab):
+    """w_slow, w_fast from non-zero values: one step of the exponential filters on w_avg.
+
+    w_avg is the mean over particles of p(z | x)^(1 / K), K the beams used
+    (the tempered likelihood of the text), with the Table 6.3 oracle; noise-free
+    motion and no odometry change, so the particles are known.
+    """
+    grid = _room()
+    field = _field(grid, 0.1, 1.0)
+    params = {
+        **MODEL,
+        "laser_pose": LASER,
+        "alphas": (0, 0, 0, 0),
+        "alpha_slow": 0.05,
+        "alpha_fast": 0.5,
+    }
+    rng = np.random.default_rng(83)
+    p = np.array([1.0, 2.0, 0.2]) + rng.normal(0, 0.2, (300, 3))
+    scan = _scan_from(grid, [1.0, 2.0, 0.2], LASER)
+    r = scan["ranges"]
+    k = int(np.sum(np.isfinite(r) & (r >= scan["range_min"]) & (r < scan["range_max"])))
+    w_avg = float(np.mean(np.exp(_model_oracle(scan, p, field, 0.9, 0.1, LASER) / k)))
+    for slow, fast in ((0.2, 0.3), (1.5, 0.4)):
+        out = lab.augmented_mcl_step(
+            p,
+            np.full(300, 1 / 300),
+            np.zeros(3),
+            np.zeros(3),
+            scan,
+            field,
+            params,
+            np.random.default_rng(84),
+            grid,
+            slow,
+            fast,
+        )
+        got = (float(out[2]), float(out[3]))
+        expected = (slow + 0.05 * (w_avg - slow), fast + 0.5 * (w_avg - fast))
+        np.testing.assert_allclose(
+            got,
+            expected,
+            rtol=1e-5,
+            err_msg=f"(w_slow, w_fast) from ({slow}, {fast}) with w_avg = {w_avg:.5f} "
+            "(mean of p(z|x)^(1/K)), alpha_slow 0.05, alpha_fast 0.5",
+        )
+
+
+@grades("augmented_mcl_step", points=1)
+def test_augmented_mcl_resamples_with_the_incoming_weights(lab):
+    """All incoming weight on one particle (likelihoods alike elsewhere): every survivor is it."""
+    grid = _room()
+    field = _field(grid, 0.1, 1.0)
+    params = {**MODEL, "laser_pose": LASER, "alphas": (0, 0, 0, 0)}
+    p = np.array([1.0, 2.0, 0.2]) + np.random.default_rng(85).normal(0, 0.3, (200, 3))
+    w = np.zeros(200)
+    w[7] = 1.0
+    scan = _scan_from(grid, [1.0, 2.0, 0.2], LASER)
+    out = lab.augmented_mcl_step(
+        p,
+        w,
+        np.zeros(3),
+        np.zeros(3),
+        scan,
+        field,
+        params,
+        np.random.default_rng(86),
+        grid,
+        0.0,
+        0.0,
+    )
+    got = _f(out[0])
+    assert np.allclose(got, p[7], atol=1e-9), (
+        f"weights 1 on particle 7 and 0 elsewhere, w_slow = w_fast = 0 (no injection): every "
+        f"resampled particle must be particle 7 {p[7]}, got {len(np.unique(got.round(9), axis=0))} "
+        "distinct poses"
+    )
+
+
+@grades("augmented_mcl_step", points=3)
 def test_augmented_mcl_injects_random_particles_after_a_kidnapping(lab):
+    """After a kidnapping w_fast falls below w_slow and random particles are injected.
+
+    The share of random particles is 1 - w_fast / w_slow.
+    """
     grid = _room()
     field = _field(grid, 0.1, 1.0)
     params = {
@@ -754,11 +1159,13 @@ def test_augmented_mcl_injects_random_particles_after_a_kidnapping(lab):
         p, w, odom, odom, scan, field, params, np.random.default_rng(81), grid, 0.0, 0.0
     )
     p1, w1, slow, fast = _f(out[0]), _f(out[1]), float(out[2]), float(out[3])
-    assert slow > 0 and slow == pytest.approx(fast)
+    assert slow > 0 and slow == pytest.approx(fast), (
+        "first step from w_slow = w_fast = 0: both start at w_avg > 0"
+    )
     assert np.all(np.hypot(*(p1[:, :2] - true[:2]).T) < 0.5), (
         "no particle should be replaced while tracking well"
     )
-    np.testing.assert_allclose(w1, 1 / n)
+    np.testing.assert_allclose(w1, 1 / n, err_msg="after resampling every weight is 1/N")
     # kidnapped: the same particles, but the robot now sees the scan of another place
     scan2 = _scan_from(grid, [4.2, 3.3, -2.0], LASER)
     out = lab.augmented_mcl_step(
@@ -778,4 +1185,4 @@ def test_augmented_mcl_injects_random_particles_after_a_kidnapping(lab):
         f"{far:.3f} of the particles were replaced by random ones, "
         f"expected about {mean:.3f} (1 - w_fast / w_slow)"
     )
-    assert frac > 0.2
+    assert frac > 0.2, "the kidnapping must make 1 - w_fast / w_slow > 0.2"

@@ -10,6 +10,7 @@ returning its first argument (both must earn 0, in every lab with a notebook).
 from __future__ import annotations
 
 import functools
+import importlib.util
 import tempfile
 from pathlib import Path
 
@@ -49,14 +50,52 @@ APPLICABLE = {
         "delegation",
     },
     "demo": {"boundary", "refusal", "angle-wrap", "degenerate-weights", "delegation"},
+    "odometry_mapping": {
+        "boundary",
+        "refusal",
+        "underflow",
+        "angle-wrap",
+        "empty-map",
+        "aliasing",
+        "delegation",
+    },
+    "mcl": {
+        "boundary",
+        "refusal",
+        "underflow",
+        "degenerate-weights",
+        "angle-wrap",
+        "incoming-weights",
+        "self-consistency",
+        "empty-map",
+        "delegation",
+    },
+    "ekf_mapping": {
+        "boundary",
+        "refusal",
+        "angle-wrap",
+        "empty-map",
+        "jacobian-point",
+        "aliasing",
+        "delegation",
+    },
+    "fastslam": {
+        "underflow",
+        "degenerate-weights",
+        "angle-wrap",
+        "incoming-weights",
+        "empty-map",
+        "jacobian-point",
+        "reported-estimate",
+        "aliasing",
+        "delegation",
+    },
 }
+#: Whether the worker observes argument changes and result aliasing (issue 14 item 5). Until
+#: it does, arguments cross as copies and an in-place mistake cannot lose points.
+OBSERVES_ARGUMENTS = importlib.util.find_spec("robolab.grading.observe") is not None
 #: Labs whose hidden tests do not yet refuse free points (their owner gates them next).
-FREE_POINTS_PENDING: set[str] = {
-    "odometry_mapping",
-    "mcl",
-    "ekf_mapping",
-    "fastslam",
-}
+FREE_POINTS_PENDING: set[str] = set()
 
 
 @functools.lru_cache(maxsize=None)
@@ -158,6 +197,8 @@ def test_each_mutant_loses_points_on_its_own_exercise(mutant):
     result = next(r for group, r in graded(mutant.lab)["packs"] if mutant in group)
     assert not result.errors, f"mutant {mutant.id}: grading failed: {result.errors}"
     earned, possible = result.exercise_scores()[mutant.exercise]
+    if earned >= possible and mutant.kind == "aliasing" and not OBSERVES_ARGUMENTS:
+        pytest.xfail("the worker does not observe argument changes yet (issue 14 item 5)")
     assert earned < possible, (
         f"mutant {mutant.id} ({build.CLASSES[mutant.kind]}: {mutant.mistake}) kept all "
         f"{possible:g} points of {mutant.exercise}: add the hidden test that catches its class"

@@ -3,7 +3,6 @@
 class: degenerate-weights
 """
 
-
 from robolab.validation import as_array, check_probability_vector
 
 
