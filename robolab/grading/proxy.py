@@ -422,7 +422,7 @@ def _launch(
         if warm is None:
             break
         try:
-            return warm.spawn(plan.to_dict(), env, str(workdir), pipes)
+            return warm.spawn({"plan": plan.to_dict(), "env": env, "cwd": str(workdir)}, pipes)
         except zygote.ZygoteError as exc:
             zygote.reset_shared(None)  # it died or broke: the next attempt starts a fresh one
             if attempt:

@@ -19,9 +19,11 @@ from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from tqdm import tqdm
 
+from robolab.grading import zygote
 from robolab.grading.labs import LabError, find_lab, lab_of_notebook, project_root
 
 __all__ = [
@@ -144,17 +146,12 @@ def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | No
         MPLBACKEND="Agg",
         PYTHONDONTWRITEBYTECODE="1",
     )
+    warm = zygote.shared()  # one warm worker zygote serves every pytest run of this process
+    if warm is not None:
+        env[zygote.FD_VARIABLE] = str(warm.fileno())
     start = time.monotonic()
     with log.open("wb") as out:
-        proc = subprocess.Popen(
-            cmd,
-            cwd=cwd,
-            env=env,
-            stdin=subprocess.DEVNULL,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
+        proc = _launch(cmd, cwd, env, out.fileno(), warm)
         try:
             code: int | None = proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -170,6 +167,32 @@ def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | No
                 except subprocess.TimeoutExpired:
                     continue
     return code, time.monotonic() - start
+
+
+def _launch(cmd: list[str], cwd: Path, env: dict, out: int, warm: zygote.Zygote | None) -> Any:
+    """Fork the pytest run from the grader zygote (pytest and numpy imported), else start it.
+
+    Either way it runs in its own session (killed as a process group), output to ``out``.
+    """
+    grader = None
+    if warm is not None and cmd[:3] == [sys.executable, "-m", "pytest"]:
+        grader = zygote.shared_grader(str(cwd), env)
+    if grader is not None:
+        request = {"args": cmd[3:], "env": env, "cwd": str(cwd), "keep": [warm.fileno()]}
+        try:
+            return grader.spawn(request, (out,))
+        except zygote.ZygoteError as exc:
+            print(f"robolab grade: starting pytest cold: {exc}", file=sys.stderr)
+    return subprocess.Popen(
+        cmd,
+        cwd=cwd,
+        env=env,
+        stdin=subprocess.DEVNULL,
+        stdout=out,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+        pass_fds=() if warm is None else (warm.fileno(),),
+    )
 
 
 def _tail(path: Path, chars: int = 1500) -> str:

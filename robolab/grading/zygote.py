@@ -45,17 +45,14 @@ import threading
 import time
 from typing import Any
 
-__all__ = ["PRELOAD", "WarmChild", "Zygote", "ZygoteError", "shared"]
+__all__ = ["PRELOAD", "WarmChild", "Zygote", "ZygoteError", "reset_shared", "shared", "shared_grader"]
 
-#: Modules imported once by the zygote: what the worker and the labs' notebooks import.
+#: Modules the zygote imports before it forks the first worker: what every lab's notebook uses.
 PRELOAD = (
     "numpy",
     "matplotlib",
     "matplotlib.pyplot",
-    "scipy.special",
-    "scipy.ndimage",
-    "scipy.integrate",
-    "scipy.stats",
+    "fractions",
     "robolab.grading.codec",
     "robolab.geometry",
     "robolab.validation",
@@ -64,11 +61,46 @@ PRELOAD = (
     "robolab.plotting",
     "robolab.checks",
 )
+#: Modules some labs use, imported one at a time while the zygote has nothing to do, so
+#: that a single submission does not wait for them but a batch gets them warm.
+PRELOAD_IDLE = (
+    "scipy.special",
+    "scipy.ndimage",
+    "scipy.integrate",
+    "tqdm.auto",
+    "robolab.bag",
+    "robolab.world",
+    "robolab.fiducials",
+    "filterpy.kalman",
+)
+#: What the grader zygote (the trusted side: pytest, the hidden tests) imports before forking.
+GRADER_PRELOAD = (
+    "numpy",
+    "pytest",
+    "_pytest.python",
+    "_pytest.fixtures",
+    "_pytest.assertion.rewrite",
+    "fractions",
+    "robolab.grading.proxy",
+)
+#: ... and while it is idle: what the hidden tests and reference solutions import.
+GRADER_PRELOAD_IDLE = (
+    "scipy.special",
+    "scipy.ndimage",
+    "scipy.integrate",
+    "scipy.stats",
+    "robolab.maps",
+    "robolab.raycast",
+    "robolab.bag",
+    "robolab.world",
+    "robolab.fiducials",
+    "filterpy.kalman",
+)
 #: Environment variable naming an inherited control socket (set by the runner for pytest).
 FD_VARIABLE = "ROBOLAB_WARM_FD"
 #: Set to "0" to start every worker cold (``python -m robolab.grading.worker``).
 SWITCH_VARIABLE = "ROBOLAB_WARM_WORKERS"
-#: Seconds the zygote may take to import :data:`PRELOAD` and say it is ready.
+#: Seconds the zygote may take to import :data:`PRELOAD` and fork the first worker.
 STARTUP_SECONDS = 60.0
 #: Largest request (JSON) accepted by the zygote.
 MAX_REQUEST_BYTES = 1 << 20
@@ -81,17 +113,39 @@ class ZygoteError(RuntimeError):
 # --- the zygote process ------------------------------------------------------------------------
 
 
-def _preload() -> None:
-    from robolab.grading.worker import RefuseAnswers
+def _preload(role: str) -> None:
+    if role == "worker":
+        from robolab.grading.worker import RefuseAnswers
 
-    sys.meta_path.insert(0, RefuseAnswers())  # the answers can never be in a child's memory
-    import matplotlib
+        sys.meta_path.insert(0, RefuseAnswers())  # the answers can never be in a child's memory
+        import matplotlib
 
-    matplotlib.use("Agg")
+        matplotlib.use("Agg")
+    for name in PRELOAD if role == "worker" else GRADER_PRELOAD:
+        _import(name)
+    _freeze()
+
+
+def _freeze() -> None:
+    """Move every object so far out of the collector's reach (what ``gc.freeze`` is for).
+
+    A child's garbage collections then skip the preloaded modules' objects:
+    faster, and the child does not write to (and so copy) every page it shares
+    with the zygote.
+    """
+    import gc
+
+    gc.collect()
+    gc.freeze()
+
+
+def _import(name: str) -> None:
     import importlib
 
-    for name in PRELOAD:
+    try:
         importlib.import_module(name)
+    except ImportError:
+        pass  # an optional library that is not installed: the worker reports it if used
 
 
 def _threads() -> int:
@@ -104,8 +158,9 @@ def _threads() -> int:
 class _Server:
     """The zygote's loop: fork a worker per request, report its exit, kill orphans."""
 
-    def __init__(self, control: socket.socket) -> None:
+    def __init__(self, control: socket.socket, role: str) -> None:
         self.control = control
+        self.role = role
         self.conns: dict[int, socket.socket] = {}  # worker pid -> its grader's connection
         self.wake_r, self.wake_w = os.pipe()
         os.set_blocking(self.wake_w, False)
@@ -118,10 +173,15 @@ class _Server:
         poller.register(self.control, select.POLLIN)
         poller.register(self.wake_r, select.POLLIN)
         by_fd: dict[int, int] = {}
+        idle = list(PRELOAD_IDLE if self.role == "worker" else GRADER_PRELOAD_IDLE)
         while True:
             try:
-                events = poller.poll(1000)
+                events = poller.poll(0 if idle else 1000)
             except InterruptedError:  # pragma: no cover - poll retries on EINTR since 3.5
+                continue
+            if not events and idle:
+                _import(idle.pop(0))
+                _freeze()
                 continue
             for fd, _ in events:
                 if fd == self.wake_r:
@@ -139,7 +199,7 @@ class _Server:
                     pid = by_fd.pop(fd, None)
                     poller.unregister(fd)
                     if pid is not None:
-                        _kill_worker(pid)
+                        self._kill(pid)
             for pid in self._reap():
                 conn = self.conns.pop(pid)
                 by_fd.pop(conn.fileno(), None)
@@ -157,7 +217,7 @@ class _Server:
             return True
         if not data and not fds:
             return False
-        if len(fds) != 4:
+        if len(fds) != (4 if self.role == "worker" else 2):
             for fd in fds:
                 os.close(fd)
             return True
@@ -179,7 +239,11 @@ class _Server:
         if pid == 0:  # pragma: no cover - the child; covered by the worker tests
             code = 70
             try:
-                code = self._become_worker(request, pipes)
+                self._detach()
+                if self.role == "worker":
+                    code = self._become_worker(request, pipes)
+                else:
+                    code = self._become_grader(request, pipes[0])
             except BaseException:  # noqa: BLE001 - the grader reports the exit status
                 import traceback
 
@@ -194,24 +258,15 @@ class _Server:
         _say(conn, {"pid": pid})
         return True
 
-    def _become_worker(self, request: dict, pipes: list[int]) -> int:  # pragma: no cover
-        """In the forked child: detach from the zygote, then run the worker as if started cold."""
+    def _detach(self) -> None:  # pragma: no cover - in the forked child
         signal.set_wakeup_fd(-1)
         signal.signal(signal.SIGCHLD, signal.SIG_DFL)
         os.setsid()  # its own session and process group, killed as a group
+
+    def _become_worker(self, request: dict, pipes: list[int]) -> int:  # pragma: no cover
+        """In the forked child: run the worker as if started cold (it isolates itself)."""
         request_fd, response_fd, output_fd = pipes
-        devnull = os.open(os.devnull, os.O_RDONLY)
-        os.dup2(devnull, 0)
-        os.dup2(output_fd, 1)
-        os.dup2(output_fd, 2)
-        keep = {0, 1, 2, request_fd, response_fd}
-        for name in os.listdir("/proc/self/fd") if os.path.isdir("/proc/self/fd") else ():
-            fd = int(name)
-            if fd not in keep:
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass  # the directory's own descriptor, already gone
+        _redirect(output_fd, keep={request_fd, response_fd})
         os.chdir(request["cwd"])
         os.environ.clear()
         os.environ.update(request["env"])
@@ -225,6 +280,34 @@ class _Server:
 
         config = {"request_fd": request_fd, "response_fd": response_fd, "plan": request["plan"]}
         return worker.main(["robolab.grading.worker", json.dumps(config)])
+
+    def _become_grader(self, request: dict, log_fd: int) -> int:  # pragma: no cover
+        """In the forked child: ``python -m pytest ARGS`` in ``cwd``, output to the log."""
+        keep = {int(fd) for fd in request.get("keep", ())}
+        _redirect(log_fd, keep=keep)
+        os.chdir(request["cwd"])
+        os.environ.clear()
+        os.environ.update(request["env"])
+        sys.path[0] = request["cwd"]  # what `python -m pytest` run there would have
+        sys.argv = ["pytest", *request["args"]]
+        import pytest
+
+        code = int(pytest.main(request["args"]))
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()
+        return code
+
+    def _kill(self, pid: int) -> None:
+        """SIGKILL a child's process group and, for a worker run by root, every process of its uid."""
+        try:
+            os.killpg(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        if self.role == "worker" and os.geteuid() == 0:
+            from robolab.grading import sandbox
+            from robolab.grading.proxy import _kill_uid
+
+            _kill_uid(sandbox.worker_uid(pid))
 
     def _reap(self) -> list[int]:
         reaped = []
@@ -242,7 +325,7 @@ class _Server:
 
     def _kill_all(self) -> None:
         for pid in list(self.conns):
-            _kill_worker(pid)
+            self._kill(pid)
         deadline = time.monotonic() + 10
         while self.conns and time.monotonic() < deadline:
             for pid in self._reap():
@@ -250,18 +333,20 @@ class _Server:
             time.sleep(0.01)
 
 
-def _kill_worker(pid: int) -> None:
-    """SIGKILL a worker's process group and, as root, every process of its uid."""
-    from robolab.grading import sandbox
-
-    try:
-        os.killpg(pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
-    if os.geteuid() == 0:
-        from robolab.grading.proxy import _kill_uid
-
-        _kill_uid(sandbox.worker_uid(pid))
+def _redirect(output_fd: int, keep: set[int]) -> None:  # pragma: no cover - in the child
+    """stdin from /dev/null, stdout and stderr to ``output_fd``; close every other descriptor."""
+    devnull = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(devnull, 0)
+    os.dup2(output_fd, 1)
+    os.dup2(output_fd, 2)
+    keep = {0, 1, 2, *keep}
+    for name in os.listdir("/proc/self/fd"):
+        fd = int(name)
+        if fd not in keep:
+            try:
+                os.close(fd)
+            except OSError:
+                pass  # the listing's own descriptor, already gone
 
 
 def _say(conn: socket.socket, message: dict) -> None:
@@ -272,18 +357,18 @@ def _say(conn: socket.socket, message: dict) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the zygote: preload, say ready on the control socket, then serve forks."""
+    """Run the zygote: preload, then fork a worker per request until every grader has gone."""
     argv = sys.argv if argv is None else argv
     config = json.loads(argv[1])
     control = socket.socket(fileno=config["control_fd"])
     os.set_inheritable(control.fileno(), False)
+    role = config.get("role", "worker")
     try:
-        _preload()
+        _preload(role)
     except Exception as exc:  # noqa: BLE001 - the grader starts workers cold instead
-        control.send(json.dumps({"error": f"{type(exc).__name__}: {exc}"}).encode())
+        print(f"robolab zygote: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 3
-    control.send(json.dumps({"ready": os.getpid()}).encode())
-    return _Server(control).run()
+    return _Server(control, role).run()
 
 
 # --- the grader's side -------------------------------------------------------------------------
@@ -353,10 +438,32 @@ class Zygote:
     control_fd : int, optional
         An inherited control socket (see :data:`FD_VARIABLE`); without it a
         new zygote is started, owned by this process.
+    role : {"worker", "grader"}
+        A worker zygote (isolated workers: a clean ``python -I`` with a minimal
+        environment) or a grader zygote (pytest runs of the hidden tests, with
+        the grader's environment, started in ``cwd``).
+    cwd : str, optional
+        The grader zygote's directory (the project root the hidden tests are in).
+    env : dict, optional
+        The grader zygote's environment (default: this process's).
+    pass_fds : tuple of int
+        Descriptors the grader zygote keeps for its children (the worker zygote's
+        control socket).
     """
 
-    def __init__(self, control_fd: int | None = None) -> None:
+    def __init__(
+        self,
+        control_fd: int | None = None,
+        *,
+        role: str = "worker",
+        cwd: str | None = None,
+        env: dict[str, str] | None = None,
+        pass_fds: tuple[int, ...] = (),
+    ) -> None:
+        if role not in ("worker", "grader"):
+            raise ValueError(f"role must be 'worker' or 'grader', got {role!r}")
         self.process = None
+        self.role = role
         self._lock = threading.Lock()
         if control_fd is not None:
             self.control = socket.socket(fileno=control_fd)
@@ -368,38 +475,46 @@ class Zygote:
         self.control, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         import subprocess
 
-        config = {"control_fd": theirs.fileno()}
+        config = json.dumps({"control_fd": theirs.fileno(), "role": role})
+        if role == "worker":  # exactly like a cold worker: isolated mode, minimal environment
+            argv = [sys.executable, "-I", "-B", "-m", "robolab.grading.zygote", config]
+            env, cwd = _zygote_env(), "/"
+        else:
+            argv = [sys.executable, "-m", "robolab.grading.zygote", config]
+            env = dict(os.environ if env is None else env)
+            for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+                env.setdefault(name, "1")  # single-threaded, or it could not fork safely
         try:
             self.process = subprocess.Popen(
-                [sys.executable, "-I", "-B", "-m", "robolab.grading.zygote", json.dumps(config)],
+                argv,
                 stdin=subprocess.DEVNULL,
-                pass_fds=(theirs.fileno(),),
-                env=_zygote_env(),
-                cwd="/",
+                pass_fds=(theirs.fileno(), *pass_fds),
+                env=env,
+                cwd=cwd,
                 start_new_session=True,  # a Ctrl-C in the grader's terminal reaches the grader only
             )
         finally:
             theirs.close()
-        ready = _readable(self.control, STARTUP_SECONDS)
-        answer = json.loads(self.control.recv(MAX_REQUEST_BYTES) or b"{}") if ready else {}
-        if "ready" not in answer:
-            self.close()
-            raise ZygoteError(f"the zygote did not start: {answer.get('error', 'no answer')}")
-        self.pid = int(answer["ready"])
+        # No waiting here: it imports while the grader starts up, and the first
+        # request simply queues until it is ready.
 
     def fileno(self) -> int:
         """The control socket, to pass to a grading process (with :data:`FD_VARIABLE`)."""
         return self.control.fileno()
 
-    def spawn(self, plan: dict, env: dict[str, str], cwd: str, pipes: tuple[int, int, int]):
-        """Fork a worker: ``pipes`` = (request read end, response write end, output write end).
+    def spawn(self, request: dict, fds: tuple[int, ...]) -> WarmChild:
+        """Fork a child: a worker or a pytest run, as the request says.
 
-        The caller keeps (and closes) its copies of the pipes.
+        A worker's request is ``{"plan", "env", "cwd"}`` with ``fds`` = (request
+        read end, response write end, output write end); a pytest run's is
+        ``{"args", "env", "cwd", "keep"}`` with ``fds`` = (log,), ``keep`` naming
+        descriptors of the grader zygote its child keeps. The caller keeps (and
+        closes) its copies of ``fds``.
 
         Returns
         -------
         WarmChild
-            The worker, running :func:`robolab.grading.worker.main`.
+            The child, already running.
 
         Raises
         ------
@@ -408,9 +523,8 @@ class Zygote:
         """
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
-            request = json.dumps({"plan": plan, "env": env, "cwd": cwd}).encode()
             with self._lock:
-                socket.send_fds(self.control, [request], [theirs.fileno(), *pipes])
+                socket.send_fds(self.control, [json.dumps(request).encode()], [theirs.fileno(), *fds])
         except OSError as exc:
             ours.close()
             raise ZygoteError(f"the zygote is gone: {exc}") from exc
@@ -423,17 +537,17 @@ class Zygote:
             chunk = ours.recv(4096) if _readable(ours, max(left, 0)) else b""
             if not chunk:
                 ours.close()
-                raise ZygoteError("the zygote did not fork a worker")
+                raise ZygoteError("the zygote did not fork (it has exited or hangs)")
             buffer += chunk
         line, rest = buffer.split(b"\n", 1)
         answer = json.loads(line)
         if "pid" not in answer:
             ours.close()
-            raise ZygoteError(f"the zygote did not fork a worker: {answer.get('error')}")
+            raise ZygoteError(f"the zygote did not fork: {answer.get('error')}")
         return WarmChild(ours, int(answer["pid"]), rest)
 
     def close(self) -> None:
-        """Close this handle; a zygote this process started exits (killing its workers)."""
+        """Close this handle; a zygote this process started exits (killing its children)."""
         try:
             self.control.close()
         except OSError:
@@ -472,19 +586,34 @@ def _zygote_env() -> dict[str, str]:
 
 _shared: Zygote | None = None
 _shared_failed: str | None = None
+_graders: dict[str, Zygote] = {}
 _shared_lock = threading.Lock()
 
 
-def shared() -> Zygote | None:
-    """This process's zygote: the inherited one, else one started on first use; None if off.
+def _enabled() -> bool:
+    return (
+        os.environ.get(SWITCH_VARIABLE) != "0"
+        and hasattr(os, "fork")
+        and hasattr(socket, "send_fds")
+        and sys.platform == "linux"
+    )
 
-    Off when :data:`SWITCH_VARIABLE` is ``"0"``, when fork is unavailable, or
-    after a zygote failed to start (a warning says why; workers then start cold).
+
+def _cold(exc: Exception) -> None:
+    import warnings
+
+    warnings.warn(f"robolab grading: starting cold: {exc}", stacklevel=3)
+
+
+def shared() -> Zygote | None:
+    """This process's worker zygote: the inherited one, else one started on first use.
+
+    None (workers start cold) when :data:`SWITCH_VARIABLE` is ``"0"``, when
+    fork or descriptor passing is unavailable, or after a zygote failed to
+    start (a warning says why).
     """
     global _shared, _shared_failed
-    if os.environ.get(SWITCH_VARIABLE) == "0" or not hasattr(os, "fork"):
-        return None
-    if not hasattr(socket, "send_fds") or sys.platform != "linux":
+    if not _enabled():
         return None
     with _shared_lock:
         if _shared is not None or _shared_failed is not None:
@@ -500,9 +629,7 @@ def shared() -> Zygote | None:
             _shared = Zygote()
         except (OSError, ZygoteError) as exc:
             _shared_failed = str(exc)
-            import warnings
-
-            warnings.warn(f"robolab grading: workers start cold: {exc}", stacklevel=2)
+            _cold(exc)
             return None
         import atexit
 
@@ -510,10 +637,39 @@ def shared() -> Zygote | None:
         return _shared
 
 
-def reset_shared(zygote: Any = None) -> None:
-    """Forget this process's zygote (closing it) and use ``zygote`` next (tests, benchmarks)."""
+def shared_grader(root: str, env: dict[str, str]) -> Zygote | None:
+    """This process's grader zygote for the project at ``root`` (started on first use).
+
+    Its children are pytest runs of the hidden tests (``Zygote.spawn`` with
+    ``{"args", "env", "cwd", "keep"}``); they reach this process's worker
+    zygote through the inherited control socket. None when warm grading is off.
+    """
+    workers = shared()
+    if workers is None:
+        return None
+    with _shared_lock:
+        grader = _graders.get(root)
+        if grader is None:
+            env = dict(env, **{FD_VARIABLE: str(workers.fileno())})
+            try:
+                grader = Zygote(role="grader", cwd=root, env=env, pass_fds=(workers.fileno(),))
+            except (OSError, ZygoteError) as exc:
+                _cold(exc)
+                return None
+            import atexit
+
+            atexit.register(grader.close)  # before the worker zygote's close (last in, first out)
+            _graders[root] = grader
+        return grader
+
+
+def reset_shared(zygote: Zygote | None = None) -> None:
+    """Close this process's zygotes; use ``zygote`` as the worker zygote next (tests, benchmarks)."""
     global _shared, _shared_failed
     with _shared_lock:
+        for grader in _graders.values():
+            grader.close()
+        _graders.clear()
         if _shared is not None and _shared is not zygote:
             _shared.close()
         _shared, _shared_failed = zygote, None
