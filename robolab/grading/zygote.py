@@ -102,6 +102,8 @@ FD_VARIABLE = "ROBOLAB_WARM_FD"
 SWITCH_VARIABLE = "ROBOLAB_WARM_WORKERS"
 #: Seconds the zygote may take to import :data:`PRELOAD` and fork the first worker.
 STARTUP_SECONDS = 60.0
+#: Grader zygotes (one per project root) a process keeps; the oldest is closed first.
+MAX_GRADER_ZYGOTES = 2
 #: Largest request (JSON) accepted by the zygote.
 MAX_REQUEST_BYTES = 1 << 20
 
@@ -650,6 +652,8 @@ def shared_grader(root: str, env: dict[str, str]) -> Zygote | None:
     with _shared_lock:
         grader = _graders.get(root)
         if grader is None:
+            while len(_graders) >= MAX_GRADER_ZYGOTES:  # one per project root, few roots at once
+                _graders.pop(next(iter(_graders))).close()
             env = dict(env, **{FD_VARIABLE: str(workers.fileno())})
             try:
                 grader = Zygote(role="grader", cwd=root, env=env, pass_fds=(workers.fileno(),))
