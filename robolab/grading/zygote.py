@@ -43,9 +43,16 @@ import socket
 import sys
 import threading
 import time
-from typing import Any
 
-__all__ = ["PRELOAD", "WarmChild", "Zygote", "ZygoteError", "reset_shared", "shared", "shared_grader"]
+__all__ = [
+    "PRELOAD",
+    "WarmChild",
+    "Zygote",
+    "ZygoteError",
+    "reset_shared",
+    "shared",
+    "shared_grader",
+]
 
 #: Modules the zygote imports before it forks the first worker: what every lab's notebook uses.
 PRELOAD = (
@@ -277,7 +284,7 @@ class _Server:
         tempfile.tempdir = None  # found again from TMPDIR, the worker's own directory
         import numpy
 
-        numpy.random.seed()  # not the zygote's state: every child draws its own
+        numpy.random.seed()  # noqa: NPY002 - the legacy global state students use, not the zygote's
         from robolab.grading import worker
 
         config = {"request_fd": request_fd, "response_fd": response_fd, "plan": request["plan"]}
@@ -300,7 +307,7 @@ class _Server:
         return code
 
     def _kill(self, pid: int) -> None:
-        """SIGKILL a child's process group and, for a worker run by root, every process of its uid."""
+        """SIGKILL a child's process group and, for a worker of root, every process of its uid."""
         try:
             os.killpg(pid, signal.SIGKILL)
         except (ProcessLookupError, PermissionError):
@@ -526,7 +533,9 @@ class Zygote:
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
             with self._lock:
-                socket.send_fds(self.control, [json.dumps(request).encode()], [theirs.fileno(), *fds])
+                socket.send_fds(
+                    self.control, [json.dumps(request).encode()], [theirs.fileno(), *fds]
+                )
         except OSError as exc:
             ours.close()
             raise ZygoteError(f"the zygote is gone: {exc}") from exc
@@ -668,7 +677,7 @@ def shared_grader(root: str, env: dict[str, str]) -> Zygote | None:
 
 
 def reset_shared(zygote: Zygote | None = None) -> None:
-    """Close this process's zygotes; use ``zygote`` as the worker zygote next (tests, benchmarks)."""
+    """Close this process's zygotes; ``zygote`` is the worker zygote next (tests, benchmarks)."""
     global _shared, _shared_failed
     with _shared_lock:
         for grader in _graders.values():

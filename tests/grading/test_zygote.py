@@ -188,9 +188,7 @@ def test_a_dead_grader_leaves_no_worker_running(warm, notebook):
     assert _wait_dead(worker), "the worker outlived its grader"
 
 
-def test_a_dead_zygote_takes_its_workers_and_the_next_worker_starts_anyway(
-    fresh_zygote, notebook
-):
+def test_a_dead_zygote_takes_its_workers_and_the_next_worker_starts_anyway(fresh_zygote, notebook):
     with open_submission(notebook, limits=TEST_LIMITS) as sub:
         worker = sub._worker.process.pid
         fresh_zygote.process.kill()
