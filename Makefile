@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 
 export MPLBACKEND := Agg
 
-.PHONY: help venv test grade lab bench data lint clean
+.PHONY: help venv test test-suite test-notebooks grade lab bench data lint clean
 
 help:
 	@echo "make grade   set up, then grade the example submissions (gradebook in grades/)"
@@ -25,8 +25,15 @@ $(STAMP): pyproject.toml
 
 venv: $(STAMP)
 
+# The test suite and the solved notebooks run side by side, one per core; each one's
+# output is printed when it is done (--output-sync), and either failing fails `make test`.
 test: $(STAMP)
+	@$(MAKE) --no-print-directory -j 2 --output-sync=target test-suite test-notebooks
+
+test-suite: $(STAMP)
 	$(BIN)/python -m pytest
+
+test-notebooks: $(STAMP)
 	$(BIN)/robolab solve notebooks/ -o build/solved
 	$(BIN)/python -m pytest --nbval-lax --nbval-cell-timeout=120 -p no:cacheprovider build/solved -o testpaths=build/solved -o addopts=""
 
