@@ -139,6 +139,10 @@ def main(argv: list[str] | None = None) -> int:
                 for mode in MODES if repeat % 2 == 0 else MODES[::-1]:
                     _set_mode(mode)
                     seconds, cpu = run()
+                    shown = "" if cpu is None else f", CPU {cpu:.2f} s"
+                    print(
+                        f"  repeat {repeat + 1}, {name}, {mode}: {seconds:.2f} s{shown}", flush=True
+                    )
                     best[name, mode] = min(best.get((name, mode), float("inf")), seconds)
                     if cpu is not None:
                         best_cpu[name, mode] = min(best_cpu.get((name, mode), float("inf")), cpu)

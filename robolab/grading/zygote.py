@@ -68,8 +68,9 @@ PRELOAD = (
     "robolab.plotting",
     "robolab.checks",
 )
-#: Modules some labs use, imported one at a time while the zygote has nothing to do, so
-#: that a single submission does not wait for them but a batch gets them warm.
+#: Modules some labs use, imported one at a time while the zygote has nothing to do once it
+#: has served :data:`IDLE_AFTER` requests: a single submission neither waits for them nor
+#: pays for them, a batch gets them warm.
 PRELOAD_IDLE = (
     "scipy.special",
     "scipy.ndimage",
@@ -80,6 +81,8 @@ PRELOAD_IDLE = (
     "robolab.fiducials",
     "filterpy.kalman",
 )
+#: Requests served before the idle imports start (a batch, not one submission).
+IDLE_AFTER = 2
 #: What the grader zygote (the trusted side: pytest, the hidden tests) imports before forking.
 GRADER_PRELOAD = (
     "numpy",
@@ -171,6 +174,7 @@ class _Server:
         self.control = control
         self.role = role
         self.conns: dict[int, socket.socket] = {}  # worker pid -> its grader's connection
+        self.served = 0
         self.wake_r, self.wake_w = os.pipe()
         os.set_blocking(self.wake_w, False)
         os.set_blocking(self.wake_r, False)
@@ -184,11 +188,12 @@ class _Server:
         by_fd: dict[int, int] = {}
         idle = list(PRELOAD_IDLE if self.role == "worker" else GRADER_PRELOAD_IDLE)
         while True:
+            warm_up = idle and self.served >= IDLE_AFTER
             try:
-                events = poller.poll(0 if idle else 1000)
+                events = poller.poll(0 if warm_up else 1000)
             except InterruptedError:  # pragma: no cover - poll retries on EINTR since 3.5
                 continue
-            if not events and idle:
+            if not events and warm_up:
                 _import(idle.pop(0))
                 _freeze()
                 continue
@@ -261,6 +266,7 @@ class _Server:
                 os._exit(code)
         for fd in pipes:
             os.close(fd)
+        self.served += 1
         self.conns[pid] = conn
         by_fd[conn.fileno()] = pid
         poller.register(conn, select.POLLIN | select.POLLHUP)

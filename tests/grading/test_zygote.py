@@ -55,6 +55,9 @@ def answers_in_memory():
 def parent():
     return os.getppid()
 
+def loaded(name):
+    return name in sys.modules
+
 def hang():
     while True:
         pass
@@ -62,11 +65,12 @@ def hang():
 
 
 def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie does not)."""
     try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+        status = Path(f"/proc/{pid}/status").read_text()
     except (FileNotFoundError, ProcessLookupError):
         return False
+    return "\nState:\tZ" not in status
 
 
 def _wait_dead(pid: int, seconds: float = 10.0) -> bool:
@@ -81,12 +85,14 @@ def _cmdline(pid: int) -> list[str]:
         return [part.decode() for part in f.read().split(b"\0") if part]
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def warm():
-    """One zygote for the tests that leave it running."""
-    zygote.reset_shared(None)
-    yield zygote.shared()
-    zygote.reset_shared(None)
+    """This process's zygote (started by the first test that needs it), left running."""
+    shared = zygote.shared()
+    if shared.process is None or shared.process.poll() is not None:
+        zygote.reset_shared(None)  # inherited or dead: a zygote of this process's own
+        shared = zygote.shared()
+    return shared
 
 
 @pytest.fixture
@@ -140,6 +146,24 @@ def test_nothing_crosses_from_one_submission_to_the_next(warm, notebook):
         assert second.looks_clean() == (True, True, True)
         # numpy's global random state is reseeded in each child, not copied from the zygote.
         assert second.draw() != first_draw
+
+
+def test_a_batch_gets_the_idle_imports_and_one_submission_does_not_pay_for_them(
+    fresh_zygote, notebook
+):
+    last = zygote.PRELOAD_IDLE[-1]
+    with open_submission(notebook, limits=TEST_LIMITS) as first:
+        assert first.loaded("matplotlib.pyplot") and first.loaded("robolab.plotting")
+    time.sleep(0.5)  # idle, but it has served one submission only
+    with open_submission(notebook, limits=TEST_LIMITS) as second:
+        assert not second.loaded(last)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        with open_submission(notebook, limits=TEST_LIMITS) as later:
+            if later.loaded(last):
+                return
+        time.sleep(0.5)
+    raise AssertionError(f"the zygote never imported {last} while idle")
 
 
 def test_a_crash_restarts_a_warm_worker(warm, tmp_path):
