@@ -633,6 +633,13 @@ def shared() -> Zygote | None:
     if not _enabled():
         return None
     with _shared_lock:
+        if (
+            _shared is not None
+            and _shared.process is not None
+            and _shared.process.poll() is not None
+        ):
+            _shared.close()  # it died (killed, out of memory): start a fresh one
+            _shared = None
         if _shared is not None or _shared_failed is not None:
             return _shared
         inherited = os.environ.pop(FD_VARIABLE, None)
@@ -666,6 +673,9 @@ def shared_grader(root: str, env: dict[str, str]) -> Zygote | None:
         return None
     with _shared_lock:
         grader = _graders.get(root)
+        if grader is not None and grader.process.poll() is not None:
+            _graders.pop(root).close()  # it died: start a fresh one
+            grader = None
         if grader is None:
             while len(_graders) >= MAX_GRADER_ZYGOTES:  # one per project root, few roots at once
                 _graders.pop(next(iter(_graders))).close()

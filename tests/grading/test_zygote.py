@@ -283,3 +283,16 @@ def test_a_warm_pytest_run_that_times_out_is_stopped(tmp_path):
     assert time.monotonic() - start < 20
     assert any("timed out" in e for e in result.errors), result.errors
     zygote.reset_shared(None)
+
+
+def test_a_dead_grader_zygote_is_replaced():
+    partial = REPO / "examples" / "submissions" / "bayes" / "partial.ipynb"
+    zygote.reset_shared(None)
+    first = grade_submission(partial)
+    dead = zygote._graders[str(REPO)]
+    dead.process.kill()
+    dead.process.wait()
+    second = grade_submission(partial)
+    assert not second.errors and second.total == first.total > 0
+    assert zygote._graders[str(REPO)] is not dead
+    zygote.reset_shared(None)
