@@ -32,7 +32,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from robolab.grading import zygote
+from robolab.grading import warm
 from robolab.grading.runner import grade_all, grade_submission
 
 REPO = Path(__file__).resolve().parents[1]
@@ -41,11 +41,11 @@ MODES = ("cold", "warm")
 
 def _set_mode(mode: str) -> None:
     """Switch this process (and the pytest runs it starts) to cold or warm workers."""
-    zygote.reset_shared(None)
+    warm.reset_shared(None)
     if mode == "cold":
-        os.environ[zygote.SWITCH_VARIABLE] = "0"
+        os.environ[warm.SWITCH_VARIABLE] = "0"
     else:
-        os.environ.pop(zygote.SWITCH_VARIABLE, None)
+        os.environ.pop(warm.SWITCH_VARIABLE, None)
 
 
 def _submissions(lab: str) -> list[Path]:
@@ -95,11 +95,11 @@ def _batch(lab: str, n: int, jobs: int, tmp: Path) -> tuple[float, float, int]:
         path = folder / f"student{i:03d}.ipynb"
         shutil.copy(sources[i % len(sources)], path)
         paths.append(path)
-    zygote.reset_shared(None)
+    warm.reset_shared(None)
     start, cpu = time.perf_counter(), _children_cpu()
     results = grade_all(paths, jobs=jobs, progress=False)
     seconds = time.perf_counter() - start
-    zygote.reset_shared(None)  # a batch is one grading session: its zygotes go with it
+    warm.reset_shared(None)  # a batch is one grading session: its zygotes go with it
     return seconds, _children_cpu() - cpu, sum(1 for r in results if r.errors)
 
 

@@ -415,16 +415,16 @@ def _launch(
     Either way the worker runs :func:`robolab.grading.worker.main` in its own
     session, with ``pipes`` (request read end, response and output write ends).
     """
-    from robolab.grading import zygote
+    from robolab.grading import warm
 
     for attempt in range(2):
-        warm = zygote.shared()
-        if warm is None:
+        workers = warm.shared()
+        if workers is None:
             break
         try:
-            return warm.spawn({"plan": plan.to_dict(), "env": env, "cwd": str(workdir)}, pipes)
-        except zygote.ZygoteError as exc:
-            zygote.reset_shared(None)  # it died or broke: the next attempt starts a fresh one
+            return workers.spawn({"plan": plan.to_dict(), "env": env, "cwd": str(workdir)}, pipes)
+        except warm.ZygoteError as exc:
+            warm.reset_shared(None)  # it died or broke: the next attempt starts a fresh one
             if attempt:
                 warnings.warn(f"robolab grading: this worker starts cold: {exc}", stacklevel=3)
     # Cold: a fresh interpreter, seeded with the font cache so it does not rebuild it.

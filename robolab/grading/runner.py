@@ -23,7 +23,7 @@ from typing import Any
 
 from tqdm import tqdm
 
-from robolab.grading import zygote
+from robolab.grading import warm
 from robolab.grading.labs import LabError, find_lab, lab_of_notebook, project_root
 
 __all__ = [
@@ -146,12 +146,12 @@ def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | No
         MPLBACKEND="Agg",
         PYTHONDONTWRITEBYTECODE="1",
     )
-    warm = zygote.shared()  # one warm worker zygote serves every pytest run of this process
-    if warm is not None:
-        env[zygote.FD_VARIABLE] = str(warm.fileno())
+    workers = warm.shared()  # one warm worker zygote serves every pytest run of this process
+    if workers is not None:
+        env[warm.FD_VARIABLE] = str(workers.fileno())
     start = time.monotonic()
     with log.open("wb") as out:
-        proc = _launch(cmd, cwd, env, out.fileno(), warm)
+        proc = _launch(cmd, cwd, env, out.fileno(), workers)
         try:
             code: int | None = proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
@@ -169,19 +169,19 @@ def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | No
     return code, time.monotonic() - start
 
 
-def _launch(cmd: list[str], cwd: Path, env: dict, out: int, warm: zygote.Zygote | None) -> Any:
+def _launch(cmd: list[str], cwd: Path, env: dict, out: int, workers: warm.Zygote | None) -> Any:
     """Fork the pytest run from the grader zygote (pytest and numpy imported), else start it.
 
     Either way it runs in its own session (killed as a process group), output to ``out``.
     """
     grader = None
-    if warm is not None and cmd[:3] == [sys.executable, "-m", "pytest"]:
-        grader = zygote.shared_grader(str(cwd), env)
+    if workers is not None and cmd[:3] == [sys.executable, "-m", "pytest"]:
+        grader = warm.shared_grader(str(cwd), env)
     if grader is not None:
-        request = {"args": cmd[3:], "env": env, "cwd": str(cwd), "keep": [warm.fileno()]}
+        request = {"args": cmd[3:], "env": env, "cwd": str(cwd), "keep": [workers.fileno()]}
         try:
             return grader.spawn(request, (out,))
-        except zygote.ZygoteError as exc:
+        except warm.ZygoteError as exc:
             print(f"robolab grade: starting pytest cold: {exc}", file=sys.stderr)
     return subprocess.Popen(
         cmd,
@@ -191,7 +191,7 @@ def _launch(cmd: list[str], cwd: Path, env: dict, out: int, warm: zygote.Zygote 
         stdout=out,
         stderr=subprocess.STDOUT,
         start_new_session=True,
-        pass_fds=() if warm is None else (warm.fileno(),),
+        pass_fds=() if workers is None else (workers.fileno(),),
     )
 
 

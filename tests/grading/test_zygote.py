@@ -20,14 +20,14 @@ from pathlib import Path
 
 import pytest
 
-from robolab.grading import sandbox, zygote
+from robolab.grading import sandbox, warm, zygote
 from robolab.grading.proxy import WorkerCrashed, open_submission
 from robolab.grading.runner import grade_submission
 from tests.grading import TEST_LIMITS, write_notebook
 
 REPO = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.skipif(
-    sys.platform != "linux" or os.environ.get(zygote.SWITCH_VARIABLE) == "0",
+    sys.platform != "linux" or os.environ.get(warm.SWITCH_VARIABLE) == "0",
     reason="warm workers need Linux (fork, descriptor passing) and are switched off",
 )
 
@@ -86,21 +86,21 @@ def _cmdline(pid: int) -> list[str]:
 
 
 @pytest.fixture
-def warm():
+def running():
     """This process's zygote (started by the first test that needs it), left running."""
-    shared = zygote.shared()
+    shared = warm.shared()
     if shared.process is None or shared.process.poll() is not None:
-        zygote.reset_shared(None)  # inherited or dead: a zygote of this process's own
-        shared = zygote.shared()
+        warm.reset_shared(None)  # inherited or dead: a zygote of this process's own
+        shared = warm.shared()
     return shared
 
 
 @pytest.fixture
 def fresh_zygote():
     """A zygote of this test's own, for the tests that kill or close it."""
-    zygote.reset_shared(None)
-    yield zygote.shared()
-    zygote.reset_shared(None)
+    warm.reset_shared(None)
+    yield warm.shared()
+    warm.reset_shared(None)
 
 
 @pytest.fixture
@@ -108,10 +108,10 @@ def notebook(tmp_path):
     return write_notebook(tmp_path / "state.ipynb", STATE)
 
 
-def test_the_worker_is_a_fork_of_a_clean_zygote(warm, notebook):
+def test_the_worker_is_a_fork_of_a_clean_zygote(running, notebook):
     with open_submission(notebook, limits=TEST_LIMITS) as sub:
         parent = sub.parent()
-        assert parent == warm.process.pid != os.getpid()
+        assert parent == running.process.pid != os.getpid()
         # The zygote is started like a cold worker: isolated mode, no bytecode, its own module.
         assert _cmdline(parent)[1:4] == ["-I", "-B", "-m"]
         assert _cmdline(parent)[4] == "robolab.grading.zygote"
@@ -119,11 +119,11 @@ def test_the_worker_is_a_fork_of_a_clean_zygote(warm, notebook):
         assert sub.sandbox.uid == sandbox.worker_uid(sub._worker.process.pid) or os.geteuid() != 0
 
 
-def test_isolation_is_the_same_as_a_cold_worker(warm, notebook, monkeypatch):
-    with open_submission(notebook, limits=TEST_LIMITS) as warm:
-        warm_report = warm.sandbox
-        warm_pid = warm._worker.process.pid
-    monkeypatch.setenv(zygote.SWITCH_VARIABLE, "0")
+def test_isolation_is_the_same_as_a_cold_worker(running, notebook, monkeypatch):
+    with open_submission(notebook, limits=TEST_LIMITS) as forked:
+        warm_report = forked.sandbox
+        warm_pid = forked._worker.process.pid
+    monkeypatch.setenv(warm.SWITCH_VARIABLE, "0")
     with open_submission(notebook, limits=TEST_LIMITS) as cold:
         assert isinstance(cold._worker.process, subprocess.Popen)  # started the old way
         assert cold.parent() == os.getpid()
@@ -137,7 +137,7 @@ def test_isolation_is_the_same_as_a_cold_worker(warm, notebook, monkeypatch):
     assert not _alive(warm_pid)
 
 
-def test_nothing_crosses_from_one_submission_to_the_next(warm, notebook):
+def test_nothing_crosses_from_one_submission_to_the_next(running, notebook):
     with open_submission(notebook, limits=TEST_LIMITS) as first:
         assert first.tamper() is True
         assert first.looks_clean() == (False, False, False)
@@ -166,7 +166,7 @@ def test_a_batch_gets_the_idle_imports_and_one_submission_does_not_pay_for_them(
     raise AssertionError(f"the zygote never imported {last} while idle")
 
 
-def test_a_crash_restarts_a_warm_worker(warm, tmp_path):
+def test_a_crash_restarts_a_warm_worker(running, tmp_path):
     path = write_notebook(
         tmp_path / "crash.ipynb", "import os\ndef die():\n    os._exit(3)\ndef one():\n    return 1"
     )
@@ -178,7 +178,7 @@ def test_a_crash_restarts_a_warm_worker(warm, tmp_path):
         assert sub._worker.process.pid != first and _wait_dead(first)
 
 
-def test_a_killed_worker_reports_its_signal(warm, notebook):
+def test_a_killed_worker_reports_its_signal(running, notebook):
     with open_submission(notebook, limits=TEST_LIMITS) as sub:
         pid = sub._worker.process.pid
         os.kill(pid, signal.SIGSEGV)
@@ -194,14 +194,14 @@ sub.hang()
 """
 
 
-def test_a_dead_grader_leaves_no_worker_running(warm, notebook):
+def test_a_dead_grader_leaves_no_worker_running(running, notebook):
     """SIGKILL the grader while its student code loops: the zygote kills the worker."""
-    env = dict(os.environ, **{zygote.FD_VARIABLE: str(warm.fileno())})
+    env = dict(os.environ, **{warm.FD_VARIABLE: str(running.fileno())})
     grader = subprocess.Popen(
         [sys.executable, "-c", GRADER, str(notebook)],
         stdout=subprocess.PIPE,
         env=env,
-        pass_fds=(warm.fileno(),),
+        pass_fds=(running.fileno(),),
         cwd=REPO,
     )
     worker = int(grader.stdout.readline())
@@ -221,8 +221,8 @@ def test_a_dead_zygote_takes_its_workers_and_the_next_worker_starts_anyway(fresh
         with pytest.raises(WorkerCrashed):
             sub.hang()
         assert sub.looks_clean() == (True, True, True)
-        assert zygote.shared() is not fresh_zygote
-        assert sub.parent() == zygote.shared().process.pid
+        assert warm.shared() is not fresh_zygote
+        assert sub.parent() == warm.shared().process.pid
 
 
 def test_the_zygote_exits_when_every_grader_has_gone(fresh_zygote, notebook):
@@ -236,15 +236,15 @@ def test_the_zygote_exits_when_every_grader_has_gone(fresh_zygote, notebook):
 
 
 def test_a_stale_descriptor_variable_is_not_trusted(monkeypatch, tmp_path):
-    zygote.reset_shared(None)
+    warm.reset_shared(None)
     with open(tmp_path / "file", "w") as f:
-        monkeypatch.setenv(zygote.FD_VARIABLE, str(f.fileno()))  # a file, not a control socket
+        monkeypatch.setenv(warm.FD_VARIABLE, str(f.fileno()))  # a file, not a control socket
         try:
-            warm = zygote.shared()
-            assert warm is not None and warm.process is not None  # started its own
+            started = warm.shared()
+            assert started is not None and started.process is not None  # started its own
             assert not f.closed and os.fstat(f.fileno())
         finally:
-            zygote.reset_shared(None)
+            warm.reset_shared(None)
 
 
 def test_warm_and_cold_grading_give_the_same_scores(monkeypatch):
@@ -252,15 +252,15 @@ def test_warm_and_cold_grading_give_the_same_scores(monkeypatch):
     partial = REPO / "examples" / "submissions" / "bayes" / "partial.ipynb"
     outcomes = {}
     for mode in ("warm", "cold"):
-        zygote.reset_shared(None)
+        warm.reset_shared(None)
         if mode == "cold":
-            monkeypatch.setenv(zygote.SWITCH_VARIABLE, "0")
+            monkeypatch.setenv(warm.SWITCH_VARIABLE, "0")
         result = grade_submission(partial)
         assert not result.errors, result.errors
         outcomes[mode] = [(t.nodeid, t.outcome, t.message) for t in result.tests]
         if mode == "warm":
-            assert str(REPO) in zygote._graders  # it did go through the grader zygote
-    zygote.reset_shared(None)
+            assert str(REPO) in warm._graders  # it did go through the grader zygote
+    warm.reset_shared(None)
     assert outcomes["warm"] == outcomes["cold"]
     assert {o for _, o, _ in outcomes["warm"]} == {"passed", "failed"}
 
@@ -277,22 +277,22 @@ def test_a_warm_pytest_run_that_times_out_is_stopped(tmp_path):
         ),
         lab="bayes",
     )
-    zygote.reset_shared(None)
+    warm.reset_shared(None)
     start = time.monotonic()
     result = grade_submission(path, timeout=3)
     assert time.monotonic() - start < 20
     assert any("timed out" in e for e in result.errors), result.errors
-    zygote.reset_shared(None)
+    warm.reset_shared(None)
 
 
 def test_a_dead_grader_zygote_is_replaced():
     partial = REPO / "examples" / "submissions" / "bayes" / "partial.ipynb"
-    zygote.reset_shared(None)
+    warm.reset_shared(None)
     first = grade_submission(partial)
-    dead = zygote._graders[str(REPO)]
+    dead = warm._graders[str(REPO)]
     dead.process.kill()
     dead.process.wait()
     second = grade_submission(partial)
     assert not second.errors and second.total == first.total > 0
-    assert zygote._graders[str(REPO)] is not dead
-    zygote.reset_shared(None)
+    assert warm._graders[str(REPO)] is not dead
+    warm.reset_shared(None)
