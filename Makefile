@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 
 export MPLBACKEND := Agg
 
-.PHONY: help venv test test-suite test-notebooks grade lab bench data lint clean
+.PHONY: help venv test test-suite test-notebooks grade lab bench data lint notebooks clean
 
 help:
 	@echo "make grade   set up, then grade the example submissions (gradebook in grades/)"
@@ -16,6 +16,7 @@ help:
 	@echo "make bench   run the benchmarks and print their tables"
 	@echo "make data    regenerate data/ with the simulator"
 	@echo "make lint    ruff"
+	@echo "make notebooks  rebuild notebooks/*.ipynb from their text sources notebooks/*.py"
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -24,6 +25,10 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 venv: $(STAMP)
+
+# The solved notebooks run in a fresh venv that has only the student edition's wheel
+# (plus pytest and nbval), from their own folder: the labs work without the repository.
+STUDENT_VENV := build/student-venv
 
 # The test suite and the solved notebooks run side by side, one per core; each one's
 # output is printed when it is done (--output-sync), and either failing fails `make test`.
@@ -35,7 +40,11 @@ test-suite: $(STAMP)
 
 test-notebooks: $(STAMP)
 	$(BIN)/robolab solve notebooks/ -o build/solved
-	$(BIN)/python -m pytest --nbval-lax --nbval-cell-timeout=120 -p no:cacheprovider build/solved -o testpaths=build/solved -o addopts=""
+	$(BIN)/python tools/add_figure_audit.py build/solved
+	$(BIN)/robolab release build/student
+	rm -rf $(STUDENT_VENV) && $(PYTHON) -m venv $(STUDENT_VENV)
+	$(STUDENT_VENV)/bin/python -m pip install --quiet --disable-pip-version-check build/student/dist/robolab-*.whl pytest nbval
+	cd build/solved && ../student-venv/bin/python -m pytest --nbval-lax --nbval-current-env --nbval-cell-timeout=120 -p no:cacheprovider . -o testpaths=. -o addopts=""
 
 grade: $(STAMP)
 	$(BIN)/robolab grade examples/submissions/*/*.ipynb --out grades/ -j 2
@@ -51,6 +60,9 @@ data: $(STAMP)
 
 lint: $(STAMP)
 	$(BIN)/ruff check robolab solutions tests benchmarks
+
+notebooks: $(STAMP)
+	$(BIN)/python tools/sync_notebooks.py
 
 clean:
 	rm -rf $(VENV) build grades .pytest_cache

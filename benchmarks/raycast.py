@@ -1,24 +1,45 @@
-"""Benchmark of robolab.raycast.cast_rays: rays per second on one core.
+"""Benchmark of robolab.raycast.cast_rays against range_libc's CDDT, on one core.
 
-Run: ``python benchmarks/raycast.py``. Two maps, 1000 poses in free space x 60
-beams each (fixed seeds):
+Run: ``python benchmarks/raycast.py`` (``RANGE_LIBC_PATH=<folder of range_libc's
+built Python module>`` adds the CDDT column; without it that column is skipped).
+range_libc is not part of robolab: ../shared/perf/RANGE_LIBC.md says how to
+build it outside the repository.
 
-* the bundled maze (203 x 203 cells of 0.05 m, laser range 4 m);
-* a 2000 x 2000 cell map (0.05 m cells, 100 m square) with 3000 random
-  axis-aligned boxes of 2-30 cells a side (about 16 % occupied), range 10 m.
+Four workloads, 1000 poses in free space x 60 beams each (fixed seeds):
 
-The baseline is a plain per-ray Python loop (the same exact Amanatides-Woo
-traversal, one ray at a time), timed on a subset of the rays and scaled; its
-ranges are checked against cast_rays on that subset. Speeds are best of 5 runs,
-both by wall clock and by process CPU time (the CPU figure is the steadier one
-on a shared machine). The issue's target is 2 million rays per second.
+* the office map (``data/office.yaml``, 260 x 420 cells of 0.05 m), range 10 m;
+* the bundled maze (203 x 203 cells of 0.05 m), range 4 m;
+* a real map: ``../shared/data/olin_ac109_1`` (1088 x 1088 cells of 0.02 m,
+  mostly unknown space that rays cross), range 20 m = 1000 cells (skipped when
+  the folder is absent);
+* a 2000 x 2000 cell map (0.05 m cells) with 3000 random boxes of 2-30 cells a
+  side (about 16 % occupied), range 10 m.
+
+Per workload, measured in the same run and interleaved (one call of each
+contender per round, best of ``REPEATS`` rounds, process CPU time):
+
+* ``cast_rays`` with the compiled kernel (backend ``numba``), the default;
+* the same with the numpy fallback (backend ``numpy``);
+* range_libc's CDDT (``PyCDDTCast``, 108 angle bins as in range_libc's
+  test.py), ``calc_range_repeat_angles``, clipped to the range.
+
+Ratios are CDDT's time over ours (> 1: ours is faster). The first-call build
+(the jump fields of one grid; CDDT's compressed table) is timed the same way.
+The compiled kernel's one-time start-up per process (``import numba`` and
+loading the kernels from numba's cache) is measured in a child process and
+printed separately. Exactness: every range of both backends is checked
+against a plain per-ray Python Amanatides-Woo loop on a subset of rays, and
+CDDT's error is reported as the share of rays more than one cell off.
+The machine's load average is printed before and after (the host is shared).
 """
 
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
 import tempfile
-import time
 from pathlib import Path
 
 import timing  # before numpy: one BLAS thread
@@ -26,11 +47,13 @@ import timing  # before numpy: one BLAS thread
 # isort: split
 import numpy as np
 
+from robolab import raycast
 from robolab.maps import OccupancyGrid, load_map
-from robolab.raycast import cast_rays
+from robolab.raycast import RayCaster
 
-N_POSES, N_BEAMS, REPEATS, BASELINE_RAYS = 1000, 60, 5, 3000
-TARGET = 2e6
+N_POSES, N_BEAMS, REPEATS, CHECK_RAYS = 1000, 60, 7, 2000
+THETA_BINS = 108
+REAL_MAP = Path(__file__).resolve().parents[2] / "shared" / "data" / "olin_ac109_1" / "ac109_1.yaml"
 
 
 def maze_grid() -> OccupancyGrid:
@@ -41,6 +64,12 @@ def maze_grid() -> OccupancyGrid:
     if not path.is_file():
         path = write_maze(Path(tempfile.mkdtemp()))
     return load_map(path)
+
+
+def office_grid() -> OccupancyGrid:
+    from robolab import DATA_DIR
+
+    return load_map(DATA_DIR / "office.yaml")
 
 
 def boxes_grid(rng) -> OccupancyGrid:
@@ -80,47 +109,140 @@ def python_loop(occ: list, u0: float, v0: float, phi: float, limit: float) -> fl
     return limit
 
 
+def load_range_libc():
+    """range_libc's module from ``RANGE_LIBC_PATH``, or None (the CDDT column is then skipped)."""
+    path = os.environ.get("RANGE_LIBC_PATH")
+    if not path:
+        return None
+    sys.path.insert(0, path)
+    try:
+        import range_libc
+    except ImportError as exc:
+        print(f"RANGE_LIBC_PATH={path}: cannot import range_libc ({exc}); CDDT column skipped")
+        return None
+    return range_libc
+
+
+class Cddt:
+    """range_libc's CDDT on a robolab grid, with its conventions (RANGE_LIBC.md)."""
+
+    def __init__(self, range_libc, grid: OccupancyGrid, max_range: float):
+        self.grid, self.max_range = grid, max_range
+        self.cells = max_range / grid.resolution
+        self.caster = range_libc.PyCDDTCast(
+            range_libc.PyOMap(grid.occupied), self.cells, THETA_BINS
+        )
+
+    def prepare(self, poses, angles):
+        uv = self.grid.world_to_map(poses[:, :2])
+        heading = poses[:, 2] - self.grid.origin[2]
+        rows = np.column_stack([uv[:, 1], uv[:, 0], np.pi / 2 - heading])
+        self.ins = np.ascontiguousarray(rows, dtype=np.float32)
+        self.angles = np.ascontiguousarray(-angles, dtype=np.float32)
+        self.out = np.empty(len(poses) * len(angles), dtype=np.float32)
+
+    def cast(self):
+        self.caster.calc_range_repeat_angles(self.ins, self.angles, self.out)
+
+    def ranges(self):
+        shape = (self.ins.shape[0], self.angles.shape[0])
+        return np.minimum(self.out.reshape(shape), self.cells) * self.grid.resolution
+
+
+def startup_seconds() -> float:
+    """Wall seconds a fresh process needs to import robolab.raycast and load the kernels."""
+    code = (
+        "import time; t = time.perf_counter(); from robolab import raycast; "
+        "b = raycast.warm_up(); print(time.perf_counter() - t, b)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return float(out.stdout.split()[0])
+
+
 def main() -> None:
     pinned = timing.pin_to_one_core()
+    load0 = timing.load_average()
+    rlc = load_range_libc()
+    backend = raycast.warm_up()
+    if backend != "numba":
+        print("numba is not usable here: only the numpy fallback is measured")
     rng = np.random.default_rng(2)
     angles = np.linspace(-np.pi, np.pi, N_BEAMS, endpoint=False)
-    cases = [("maze 203x203", maze_grid(), 4.0), ("boxes 2000x2000", boxes_grid(rng), 10.0)]
+    cases = [("office 260x420", office_grid(), 10.0), ("maze 203x203", maze_grid(), 4.0)]
+    if REAL_MAP.is_file():
+        cases.append(("olin 1088x1088 2cm", load_map(REAL_MAP), 20.0))
+    else:
+        print(f"{REAL_MAP} not found: the real-map workload is skipped")
+    cases.append(("boxes 2000x2000", boxes_grid(rng), 10.0))
     n_rays = N_POSES * N_BEAMS
-    print(f"cast_rays, {N_POSES} poses x {N_BEAMS} beams = {n_rays} rays, {pinned}")
-    header = (
-        f"{'map':<16} {'range':>6} {'first call':>11} {'M rays/s wall':>14} {'M rays/s cpu':>13}"
-        f" {'loop M rays/s':>14} {'speed-up':>9} {'target 2M':>10}"
+    print(
+        f"cast_rays, {N_POSES} poses x {N_BEAMS} beams = {n_rays} rays, {pinned}, "
+        f"best of {REPEATS} interleaved rounds (process CPU time)"
     )
-    print(header)
-    print("-" * len(header))
+    print(f"before: {load0}")
+    if backend == "numba":
+        print(
+            f"one-time start-up per process (import numba, load kernels): {startup_seconds():.2f} s"
+        )
+    head = (
+        f"{'map':<19} {'range':>5} | {'cast ms: numba':>14} {'numpy':>7} {'CDDT':>7}"
+        f" | {'CDDT/numba':>10} {'numpy/numba':>11} | {'build ms: numba':>15} {'numpy':>7}"
+        f" {'CDDT':>7} | {'CDDT off >1 cell':>16}"
+    )
+    print(head)
+    print("-" * len(head))
     for name, grid, max_range in cases:
         poses = free_poses(grid, N_POSES, rng)
-        t0 = time.perf_counter()
-        ranges = cast_rays(grid, poses, angles, max_range)  # builds and caches the distance field
-        first = time.perf_counter() - t0
-        best = timing.best_of(cast_rays, REPEATS, grid, poses, angles, max_range)
-        wall, cpu = best.wall, best.cpu
+        builds = {"numpy": lambda g=grid: RayCaster(g, backend="numpy")}
+        if backend == "numba":
+            builds["numba"] = lambda g=grid: RayCaster(g, backend="numba")
+        if rlc is not None:
+            builds["cddt"] = lambda g=grid, m=max_range: Cddt(rlc, g, m)
+        build = timing.interleaved(builds, 3)
+        made = {k: f() for k, f in builds.items()}
+        casts = {
+            k: (lambda c=c, p=poses, m=max_range: c.cast(p, angles, m))
+            for k, c in made.items()
+            if k != "cddt"
+        }
+        if rlc is not None:
+            made["cddt"].prepare(poses, angles)
+            casts["cddt"] = made["cddt"].cast
+        best = timing.interleaved(casts, REPEATS)
 
-        # Baseline on a subset of rays, checked against cast_rays.
+        # exactness: both backends against the per-ray Python loop on a subset of rays
         occ = grid.occupied.tolist()
         uv = grid.world_to_map(poses[:, :2])
-        pick = rng.choice(n_rays, BASELINE_RAYS, replace=False)
-        i, j = np.divmod(pick, N_BEAMS)
-        phi = poses[i, 2] + angles[j]
+        i, j = np.divmod(rng.choice(n_rays, CHECK_RAYS, replace=False), N_BEAMS)
         limit = max_range / grid.resolution
-        c0 = time.process_time()
-        base = [python_loop(occ, uv[k, 0], uv[k, 1], f, limit) for k, f in zip(i, phi, strict=True)]
-        base_cpu = (time.process_time() - c0) / BASELINE_RAYS * n_rays
-        err = np.abs(np.asarray(base) * grid.resolution - ranges[i, j]).max()
-        assert err < 1e-9, f"baseline and cast_rays disagree by {err}"
-
-        speed, base_speed = n_rays / cpu, n_rays / base_cpu
-        print(
-            f"{name:<16} {max_range:>5.0f}m {first * 1e3:>9.0f}ms {n_rays / wall / 1e6:>14.2f}"
-            f" {speed / 1e6:>13.2f} {base_speed / 1e6:>14.3f} {speed / base_speed:>8.0f}x"
-            f" {'yes' if speed >= TARGET else 'NO':>10}"
+        phi = poses[i, 2] - grid.origin[2] + angles[j]
+        exact = np.array(
+            [python_loop(occ, uv[k, 0], uv[k, 1], f, limit) for k, f in zip(i, phi, strict=True)]
         )
-        print(f"{'':<16} mean range {ranges.mean():.2f} m, {np.mean(ranges < max_range):.0%} hits")
+        for k in casts:
+            if k == "cddt":
+                continue
+            err = np.abs(exact * grid.resolution - made[k].cast(poses, angles, max_range)[i, j])
+            assert err.max() < 1e-9, f"{k} backend and the exact loop disagree by {err.max()}"
+        off = "-"
+        if rlc is not None:
+            made["cddt"].cast()
+            cd = made["cddt"].ranges()[i, j]
+            off = f"{np.mean(np.abs(cd - exact * grid.resolution) > grid.resolution):.0%}"
+
+        def ms(key, table):
+            return f"{table[key] * 1e3:.1f}" if key in table else "-"
+
+        def ratio(num, den, best=best):
+            return f"{best[num] / best[den]:.2f}x" if num in best and den in best else "-"
+
+        print(
+            f"{name:<19} {max_range:>4.0f}m | {ms('numba', best):>14} {ms('numpy', best):>7}"
+            f" {ms('cddt', best):>7} | {ratio('cddt', 'numba'):>10} {ratio('numpy', 'numba'):>11}"
+            f" | {ms('numba', build):>15} {ms('numpy', build):>7} {ms('cddt', build):>7}"
+            f" | {off:>16}"
+        )
+    print(f"after: {timing.load_average()}")
 
 
 if __name__ == "__main__":

@@ -52,6 +52,14 @@ def pin_to_one_core() -> str:
     return f"pinned to CPU {cpu}"
 
 
+def load_average() -> str:
+    """The machine's 1, 5 and 15 minute load averages, for a header (the host is shared)."""
+    if not hasattr(os, "getloadavg"):
+        return "load average unavailable"
+    one, five, fifteen = os.getloadavg()
+    return f"load average {one:.2f} {five:.2f} {fifteen:.2f} on {os.cpu_count()} CPUs"
+
+
 @dataclass(frozen=True)
 class Timing:
     """Best (minimum) wall-clock and process-CPU seconds over the repeats, each on its own."""
@@ -75,6 +83,23 @@ def best_of(fn: Callable[..., Any], repeats: int, *args: Any, **kwargs: Any) -> 
         c1, w1 = time.process_time(), time.perf_counter()
         wall, cpu = min(wall, w1 - w0), min(cpu, c1 - c0)
     return Timing(wall, cpu)
+
+
+def interleaved(fns: dict, repeats: int) -> dict:
+    """Best process-CPU seconds of each function of ``fns``, calling them in turn each round.
+
+    Interleaving (one call of every contender per round, ``repeats`` rounds) gives
+    each the same share of the machine's noise, so their ratios are fair on a shared host.
+    """
+    if repeats < 1:
+        raise ValueError(f"repeats must be >= 1, got {repeats}")
+    best = dict.fromkeys(fns, float("inf"))
+    for _ in range(repeats):
+        for key, fn in fns.items():
+            c0 = time.process_time()
+            fn()
+            best[key] = min(best[key], time.process_time() - c0)
+    return best
 
 
 if __name__ == "__main__":

@@ -5,23 +5,76 @@ Sub-commands (each lives in its own module; this file only parses arguments):
 - ``robolab data``: regenerate the bundled data with the simulator (robolab.sim).
 - ``robolab grade``, ``check``, ``solve``, ``release``, ``gradescope``: the
   autograder (robolab.grading.commands).
+
+Every user error (a bad argument, a path that cannot be written, a file that cannot
+be read) is one line ``robolab: error: ...`` on stderr and exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
+#: Exit status of a user error (as argparse's).
+USAGE = 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage error is one line: ``robolab: error: <sub-command>: ...``."""
+
+    def error(self, message: str):  # noqa: D102 - argparse's hook
+        where = self.prog.removeprefix("robolab").strip()
+        print(f"robolab: error: {where + ': ' if where else ''}{message}", file=sys.stderr)
+        sys.exit(USAGE)
+
+
+def _number(cast, valid, noun: str, rule: str):
+    """An argparse type: ``cast(text)`` that must satisfy ``valid``, else a one-line error."""
+
+    def convert(text: str):
+        try:
+            value = cast(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {noun}") from None
+        if not valid(value):
+            raise argparse.ArgumentTypeError(f"must be {rule}, got {text}")
+        return value
+
+    return convert
+
+
+_positive_seconds = _number(
+    float,
+    lambda v: v > 0 and math.isfinite(v),
+    "a number of seconds",
+    "a positive number of seconds",
+)
+_positive_int = _number(int, lambda v: v >= 1, "a whole number", "at least 1")
+_percent = _number(float, lambda v: 0 <= v <= 100, "a percentage", "between 0 and 100 (percent)")
+
+
+def _visibility(text: str) -> tuple[str, str]:
+    from robolab.grading.gradescope import VISIBILITIES
+
+    exercise, sep, value = text.partition("=")
+    if not sep or value not in VISIBILITIES or not exercise:
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected EXERCISE=VISIBILITY with VISIBILITY one of "
+            f"{', '.join(VISIBILITIES)}"
+        )
+    return exercise, value
+
 
 def _build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="robolab", description="robolab: probabilistic-robotics labs and their autograder"
     )
     p.add_argument(
         "--version", action="version", version=f"robolab {__import__('robolab').__version__}"
     )
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
     d = sub.add_parser(
@@ -42,13 +95,50 @@ def _build_parser() -> argparse.ArgumentParser:
     g.add_argument(
         "--out", type=Path, default=Path("grades"), help="folder for gradebook and feedback"
     )
-    g.add_argument("-j", "--jobs", type=int, default=1, help="submissions graded in parallel")
+    g.add_argument(
+        "-j", "--jobs", type=_positive_int, default=1, help="submissions graded in parallel"
+    )
     g.add_argument(
         "--timeout",
-        type=float,
+        type=_positive_seconds,
         default=None,
         metavar="SECONDS",
         help="overall time limit per submission (default 600)",
+    )
+    g.add_argument("--roster", type=Path, help="CSV: id,name,email,match (see docs/instructor.md)")
+    g.add_argument(
+        "--export",
+        action="append",
+        default=[],
+        choices=["canvas", "moodle"],
+        help="also write OUT/<lms>.csv for Canvas or Moodle import (needs --roster; repeatable)",
+    )
+    g.add_argument("--assignment", help="the assignment's column name in exports (default: lab)")
+    g.add_argument(
+        "--overrides",
+        type=Path,
+        help="CSV: student,exercise,points,comment; kept as OUT/overrides.csv for regrades",
+    )
+    g.add_argument("--due", help="due date, ISO 8601 (2026-03-01T23:59:00+01:00)")
+    g.add_argument(
+        "--late-penalty",
+        type=_percent,
+        default=0.0,
+        metavar="PERCENT",
+        help="percent of the points lost per started day late",
+    )
+    g.add_argument(
+        "--late-cap",
+        type=_percent,
+        default=100.0,
+        metavar="PERCENT",
+        help="largest late penalty in percent (default 100)",
+    )
+    g.add_argument(
+        "--submitted-times",
+        type=Path,
+        metavar="CSV",
+        help="CSV: match,submitted (default: the files' modification times)",
     )
 
     c = sub.add_parser("check", help="run a notebook's visible checks (for students)")
@@ -56,39 +146,76 @@ def _build_parser() -> argparse.ArgumentParser:
 
     s = sub.add_parser("solve", help="replace exercise stubs with the reference solutions")
     s.add_argument("notebooks", nargs="+", type=Path, help="notebooks, or folders of notebooks")
-    s.add_argument("-o", "--out", type=Path, required=True, help="output folder")
+    s.add_argument(
+        "-o", "--out", type=Path, required=True, help="output folder, or a .ipynb file for one"
+    )
 
     r = sub.add_parser("release", help="build the student edition (no solutions, no hidden tests)")
     r.add_argument("out", type=Path)
+    r.add_argument("--no-wheel", dest="wheel", action="store_false",
+                   help="skip building dist/robolab-*.whl (the installable edition)")
 
     gs = sub.add_parser("gradescope", help="build a Gradescope autograder bundle for one lab")
     gs.add_argument("--lab", required=True)
     gs.add_argument("-o", "--out", type=Path, default=Path("autograder.zip"))
+    gs.add_argument(
+        "--visibility",
+        type=_visibility,
+        action="append",
+        default=[],
+        metavar="EXERCISE=VISIBILITY",
+        help="visible, after_due_date, after_published or hidden for one exercise's tests",
+    )
+    gs.add_argument(
+        "--default-visibility",
+        default="visible",
+        choices=["visible", "after_due_date", "after_published", "hidden"],
+    )
+    gs.add_argument("--late-penalty", type=_percent, default=0.0, metavar="PERCENT")
+    gs.add_argument("--late-cap", type=_percent, default=100.0, metavar="PERCENT")
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = _build_parser().parse_args(argv)
-    if args.command == "data":
-        from robolab.sim import make_data
-
-        make_data(out_dir=args.out, only=args.only)
-        return 0
+def _dispatch(args) -> int:
     from robolab.grading import commands
 
+    if args.command == "data":
+        return commands.data(args.out, args.only)
     if args.command == "grade":
+        options = ("lab", "out", "jobs", "timeout", "roster", "overrides", "assignment", "due")
+        options += ("late_penalty", "late_cap", "submitted_times")
         return commands.grade(
-            args.submissions, lab=args.lab, out=args.out, jobs=args.jobs, timeout=args.timeout
+            args.submissions, exports=args.export, **{k: getattr(args, k) for k in options}
         )
     if args.command == "check":
         return commands.check(args.notebook)
     if args.command == "solve":
         return commands.solve(args.notebooks, out=args.out)
     if args.command == "release":
-        return commands.release(args.out)
+        return commands.release(args.out, wheel=args.wheel)
     if args.command == "gradescope":
-        return commands.gradescope(args.lab, out=args.out)
+        return commands.gradescope(
+            args.lab,
+            out=args.out,
+            visibility=dict(args.visibility),
+            default_visibility=args.default_visibility,
+            late_penalty=args.late_penalty,
+            late_cap=args.late_cap,
+        )
     raise AssertionError(args.command)
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _build_parser().parse_args(argv)
+    try:
+        return _dispatch(args)
+    except OSError as exc:  # a file the user named cannot be read or written
+        where = f": {exc.filename}" if getattr(exc, "filename", None) else ""
+        print(f"robolab: error: {exc.strerror or exc}{where}", file=sys.stderr)
+        return USAGE
+    except KeyboardInterrupt:
+        print("robolab: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""The fiducial robot of the FastSLAM lab (seed 003, the ME465 extra lab's ``Robot.m``).
+"""The fiducial robot of the FastSLAM lab (lab 07; a MATLAB ``Robot.m`` in other versions of this lab).
 
 A unicycle robot drives a closed loop around a handful of fiducials (visual
 markers with known identities) and reports, at every step, the command it was
@@ -39,7 +39,7 @@ and the route (:meth:`FiducialRobot.input`) is a rounded triangle of about
 of 600 steps goes three times around, so every fiducial is revisited (loop
 closure). More fiducials (``n_fiducials > 5``, e.g. 15 for the benchmark) are
 added on a fixed golden-angle spiral around the loop's centre, independent of
-the seed.
+the random seed.
 
 The whole run (motion noise and measurement noise) is drawn at construction
 from ``numpy.random.default_rng(seed)``, so a robot is a deterministic replay:
@@ -81,7 +81,7 @@ __all__ = [
 
 #: The five fiducials of the lab, metres, one row per id.
 FIDUCIALS = np.array([(-3.5, 1.0), (1.0, 1.5), (-3.0, 5.5), (-8.0, 2.0), (-2.0, -3.5)])
-#: Start pose of the seed: x0 = [-2.5, -2, 0.25] (m, m, rad).
+#: Start pose of the lab's robot: x0 = [-2.5, -2, 0.25] (m, m, rad).
 X0 = np.array([-2.5, -2.0, 0.25])
 #: Time step, s.
 DT = 0.1
@@ -247,7 +247,7 @@ class FiducialRun:
 
 
 class FiducialRobot:
-    """The fiducial robot of the FastSLAM lab, driven like the seed's ``Robot.m``.
+    """The fiducial robot of the FastSLAM lab, driven like MATLAB's ``Robot.m`` in other versions of the lab.
 
     Use it as::
 

@@ -21,6 +21,7 @@ __all__ = [
     "rotation_matrix",
     "yaw_from_quaternion",
     "quaternion_from_yaw",
+    "anchor_odometry",
 ]
 
 
@@ -28,9 +29,12 @@ def wrap_angle(angle):
     """Wrap angles to ``[-pi, pi)``.
 
     ``wrap_angle(pi) == -pi``; works elementwise on arrays and returns a float
-    for a scalar.
+    for a scalar. NaN stays NaN (a missing value); an infinite angle has no
+    direction and raises ValueError.
     """
     a = np.asarray(angle, dtype=float)
+    if np.isinf(a).any():
+        raise ValueError("angle must be finite: an infinite angle has no direction")
     wrapped = (a + np.pi) % (2.0 * np.pi) - np.pi
     # Just below -pi, (a + pi) % 2pi rounds up to 2pi and the result would be +pi.
     wrapped = np.where(wrapped >= np.pi, wrapped - 2.0 * np.pi, wrapped)
@@ -114,3 +118,36 @@ def quaternion_from_yaw(yaw) -> np.ndarray:
     h = 0.5 * np.asarray(yaw, dtype=float)
     zeros = np.zeros_like(h)
     return np.stack([zeros, zeros, np.sin(h), np.cos(h)], -1)
+
+
+def anchor_odometry(odom_poses, start_pose, odom_start=None) -> np.ndarray:
+    """Raw odometry placed in the map frame: ``compose(start_pose, relative(odom_start, odom))``.
+
+    Odometry ``odom -> base_link`` starts wherever the robot's odometry frame put it
+    (a real bag's first odometry pose is rarely ``(0, 0, 0)``). The motion since the
+    start, ``relative(odom_start, odom)``, is what odometry measures; composing it onto
+    the known start pose in the map gives the raw-odometry path in the map.
+    ``compose(start_pose, odom)`` is right only when ``odom_start`` is the origin.
+
+    Parameters
+    ----------
+    odom_poses : array_like, shape (T, 3) or (3,)
+        Odometry poses in the ``odom`` frame.
+    start_pose : array_like, shape (3,)
+        The true (map) pose at the time of ``odom_start``.
+    odom_start : array_like, shape (3,), optional
+        The odometry pose at that time; default ``odom_poses[0]``.
+
+    Returns
+    -------
+    numpy.ndarray, the shape of ``odom_poses``
+        The path in the map frame; its first pose is ``start_pose`` when
+        ``odom_start`` is the first odometry pose.
+    """
+    odom = as_array("odom_poses", odom_poses, ndim=(1, 2), finite=True)
+    if odom.shape[-1] != 3 or odom.size == 0:
+        raise ValueError(f"odom_poses must have shape (T, 3) or (3,), got {odom.shape}")
+    start = as_array("start_pose", start_pose, shape=(3,), finite=True)
+    first = odom.reshape(-1, 3)[0] if odom_start is None else odom_start
+    o0 = as_array("odom_start", first, shape=(3,), finite=True)
+    return compose(start, relative(o0, odom))

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 from PIL import Image, UnidentifiedImageError
+from scipy.special import expit
 
 from robolab.validation import as_array, check_positive
 
@@ -25,6 +26,7 @@ __all__ = [
     "save_map",
     "image_to_occupancy",
     "load_maze",
+    "from_logodds",
 ]
 
 #: Cell value for unknown space.
@@ -176,6 +178,56 @@ class OccupancyGrid:
         return OccupancyGrid(data, self.resolution, self.origin.copy(), self.occupied_threshold)
 
 
+def from_logodds(logodds, grid: OccupancyGrid, *, prior: float = 0.0, observed=None):
+    r"""The occupancy grid of a log-odds map, with never-observed cells **unknown**.
+
+    A cell's probability is :math:`p = 1 - 1 / (1 + e^{l})`, except where the cell
+    was never observed: there it is :data:`UNKNOWN` (-1), as map_server's -1.
+    Unknown is neither free nor occupied (:attr:`OccupancyGrid.occupied` and
+    :attr:`OccupancyGrid.free` are both False there): ray casting passes through
+    it and the likelihood field measures distances to occupied cells only.
+
+    Without this, ``grid.with_data(logodds_to_probability(l))`` turns every unseen
+    cell (log-odds = prior = 0, p = 0.5) into an obstacle, since a cell counts as
+    occupied at ``p >= occupied_threshold`` (0.5): rays cast from inside such a map
+    stop at once.
+
+    Parameters
+    ----------
+    logodds : array_like, shape grid.shape
+        Log-odds; ``+-inf`` allowed (p = 1 / 0), NaN not.
+    grid : OccupancyGrid
+        The geometry (resolution, origin, threshold) of the result.
+    prior : float
+        The prior log-odds :math:`l_0` the map started from.
+    observed : array_like of bool, shape grid.shape, optional
+        Which cells any beam updated (e.g. accumulate ``new != old`` per scan).
+        Default: the cells whose log-odds differ from ``prior``.
+
+    Returns
+    -------
+    OccupancyGrid
+    """
+    if not isinstance(grid, OccupancyGrid):
+        raise TypeError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
+    lo = as_array("logodds", logodds, shape=grid.shape)
+    if np.any(np.isnan(lo)):
+        raise ValueError("logodds must not contain NaN")
+    l0 = float(prior)
+    if not np.isfinite(l0):
+        raise ValueError(f"prior must be finite, got {prior!r}")
+    if observed is None:
+        seen = lo != l0
+    else:
+        seen = np.asarray(observed)
+        if seen.dtype != bool or seen.shape != grid.shape:
+            raise ValueError(
+                f"observed must be a bool array of shape {grid.shape}, "
+                f"got {seen.dtype} {seen.shape}"
+            )
+    return grid.with_data(np.where(seen, expit(lo), UNKNOWN))
+
+
 def image_to_occupancy(image: np.ndarray, level: float = 0.5) -> np.ndarray:
     """Binary occupancy from an image, like MATLAB's ``1 - im2bw(A, level)``.
 
@@ -190,19 +242,52 @@ def image_to_occupancy(image: np.ndarray, level: float = 0.5) -> np.ndarray:
     return (lum <= level).astype(float)
 
 
-def _read_image(path: Path) -> np.ndarray:
+#: Pillow modes of 16-bit grey images (PNG gives ``I;16``, PGM with maxval > 255 gives ``I``).
+_SIXTEEN_BIT_MODES = ("I;16", "I;16B", "I;16L", "I;16N", "I")
+
+
+def _read_image(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """Pixels of an image file and its alpha channel.
+
+    Returns
+    -------
+    pixels : numpy.ndarray
+        ``(H, W)`` grey or ``(H, W, 3)`` RGB, ``uint8`` or (16-bit images) ``uint16``.
+    alpha : numpy.ndarray or None
+        ``(H, W)`` opacity in [0, 1] when the image has an alpha channel (RGBA, LA,
+        or a palette with transparency), else None.
+    """
     if not path.is_file():
         raise MapFormatError(f"map image {str(path)!r} does not exist")
     try:
         with Image.open(path) as im:
-            im.load()
-            if im.mode not in ("L", "RGB", "RGBA", "I;16", "1", "P", "LA"):
-                im = im.convert("RGB")
-            elif im.mode in ("P", "1", "LA"):
+            if im.mode in ("P", "PA"):
+                im = im.convert("RGBA" if im.mode == "PA" or "transparency" in im.info else "RGB")
+            elif im.mode == "1":
                 im = im.convert("L")
-            return np.array(im)
-    except (UnidentifiedImageError, OSError, SyntaxError) as exc:
+            elif im.mode not in ("L", "LA", "RGB", "RGBA", *_SIXTEEN_BIT_MODES):
+                im = im.convert("RGB")
+            im.load()
+            arr = np.array(im)
+    except Image.DecompressionBombError as exc:
+        raise MapFormatError(
+            f"map image {str(path)!r} is too large to load: its header claims more pixels "
+            f"than Pillow's limit of {Image.MAX_IMAGE_PIXELS} ({exc})"
+        ) from exc
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
         raise MapFormatError(f"map image {str(path)!r} is not a readable image: {exc}") from exc
+    if arr.dtype not in (np.uint8, np.uint16):  # 32-bit "I": 16-bit PGM, or a wider TIFF
+        if arr.size and (arr.min() < 0 or arr.max() > 65535):
+            raise MapFormatError(
+                f"map image {str(path)!r}: pixel values outside 0..65535 (mode {im.mode}); "
+                f"only 8- and 16-bit images are maps"
+            )
+        arr = arr.astype(np.uint16)
+    if arr.ndim == 3 and arr.shape[-1] in (2, 4):  # LA, RGBA: split off the alpha channel
+        alpha = arr[..., -1].astype(float) / np.iinfo(arr.dtype).max
+        arr = arr[..., 0] if arr.shape[-1] == 2 else arr[..., :3]
+        return arr, alpha
+    return arr, None
 
 
 def load_map(
@@ -238,7 +323,7 @@ def load_map(
         raise MapFormatError(
             f"{str(path)!r}: unknown map format {path.suffix!r}; expected .yaml or an image"
         )
-    occ = image_to_occupancy(_read_image(path), level)
+    occ = image_to_occupancy(_read_image(path)[0], level)
     return OccupancyGrid(np.flipud(occ), resolution, np.asarray(origin, dtype=float))
 
 
@@ -286,42 +371,97 @@ def _load_map_server(path: Path) -> OccupancyGrid:
     image_path = Path(meta["image"])
     if not image_path.is_absolute():
         image_path = path.parent / image_path
-    img = _read_image(image_path).astype(float)
-    if img.ndim == 3:  # map_server averages the colour channels
-        img = img[..., :3].mean(axis=-1)
-    # map_server: p = (255 - x) / 255 is the occupancy probability unless negated.
-    p = img / 255.0 if negate else (255.0 - img) / 255.0
+    raw, alpha = _read_image(image_path)
+    # map_server reads the grey level x in [0, 1] (x / 255 for 8 bits, x / 65535 for 16),
+    # averaging the colour channels of an RGB image.
+    img = raw.astype(float) / np.iinfo(raw.dtype).max
+    if img.ndim == 3:
+        img = img.mean(axis=-1)
+    # map_server: p = 1 - x is the occupancy probability unless negated.
+    p = img if negate else 1.0 - img
     data = np.full(p.shape, UNKNOWN)
     data[p > occ_th] = 1.0
     data[p < free_th] = 0.0
     if mode == "scale":
         between = (p >= free_th) & (p <= occ_th)
         data[between] = (p[between] - free_th) / (occ_th - free_th)
+        if alpha is not None:  # map_server: in scale mode any transparency means unknown
+            data[alpha < 1.0] = UNKNOWN
     return OccupancyGrid(np.flipud(data), resolution, origin)
 
 
+def _maps_using(image_path: Path, except_yaml: Path) -> list[Path]:
+    """map_server YAML files next to ``image_path`` whose ``image`` is that file."""
+    users = []
+    for other in sorted(image_path.parent.glob("*.y*ml")):
+        if other.suffix.lower() not in (".yaml", ".yml") or other.resolve() == except_yaml:
+            continue
+        try:
+            meta = yaml.safe_load(other.read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+            continue  # not a map file
+        if isinstance(meta, dict) and isinstance(meta.get("image"), str):
+            target = Path(meta["image"])
+            if not target.is_absolute():
+                target = other.parent / target
+            if target.resolve() == image_path.resolve():
+                users.append(other)
+    return users
+
+
 def save_map(
-    grid: OccupancyGrid, yaml_path, *, occupied_thresh: float = 0.65, free_thresh: float = 0.196
+    grid: OccupancyGrid,
+    yaml_path,
+    *,
+    occupied_thresh: float = 0.65,
+    free_thresh: float = 0.196,
+    image=None,
 ) -> Path:
     """Write ``grid`` as map_server YAML + binary PGM (P5), like ``map_saver``.
 
     Occupied cells (``>= occupied_thresh``) become 0, free cells (``<= free_thresh``)
     254 and the rest (unknown or in between) 205. Returns the YAML path.
+
+    Parameters
+    ----------
+    grid : OccupancyGrid
+    yaml_path : str or Path
+        The ``.yaml`` / ``.yml`` file to write.
+    occupied_thresh, free_thresh : float
+        Written to the YAML and used to pick the pixel values.
+    image : str or Path, optional
+        The image file, relative to the YAML's folder; default the YAML's name with
+        ``.pgm`` (``x.yaml`` and ``x.yml`` both give ``x.pgm``).
+
+    Raises
+    ------
+    FileExistsError
+        The image file is the image of *another* map_server YAML in its folder
+        (e.g. ``save_map(grid, "x.yml")`` next to an ``x.yaml`` that uses
+        ``x.pgm``): overwriting it would silently change that map. Pass ``image=``.
     """
     if not isinstance(grid, OccupancyGrid):
         raise TypeError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
     yaml_path = Path(yaml_path)
     if yaml_path.suffix.lower() not in (".yaml", ".yml"):
         raise ValueError(f"yaml_path must end in .yaml or .yml, got {str(yaml_path)!r}")
-    pgm_path = yaml_path.with_suffix(".pgm")
+    pgm_path = yaml_path.with_suffix(".pgm") if image is None else yaml_path.parent / image
+    if pgm_path.exists():
+        users = _maps_using(pgm_path, yaml_path.resolve())
+        if users:
+            raise FileExistsError(
+                f"{str(pgm_path)!r} is the image of {', '.join(map(str, users))}: "
+                f"saving {str(yaml_path)!r} would overwrite it; pass image= another file name"
+            )
     d = grid.data
     img = np.full(d.shape, 205, dtype=np.uint8)
     img[(d >= 0) & (d <= free_thresh)] = 254
     img[d >= occupied_thresh] = 0
     yaml_path.parent.mkdir(parents=True, exist_ok=True)
+    pgm_path.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(np.flipud(img), mode="L").save(pgm_path)
     meta = {
-        "image": pgm_path.name,
+        "image": pgm_path.name if image is None else Path(image).as_posix(),
         "resolution": float(grid.resolution),
         "origin": [float(v) for v in grid.origin],
         "negate": 0,

@@ -75,6 +75,36 @@ live rays are compacted. The fields are computed once per grid and cached.
 This is the approach of range_libc's ray marching [2]_ made exact by the
 Amanatides-Woo steps near obstacles.
 
+Backends
+--------
+Two implementations of this traversal give the same ranges (up to float
+round-off, ~1e-13 cells):
+
+* ``"numba"`` (the default when numba can be imported): the compiled kernels of
+  :mod:`robolab._raycast_jit`, one ray at a time on one core, eight rays
+  interleaved so that their memory look-ups overlap. Its jump fields are
+  chessboard distances ``D_q(c) = min max(|di|, |dj|)`` over the obstacles of
+  ``Q_q(c)``, built by the largest-empty-square recurrence in one pass per
+  quadrant and stored in one byte each (exact up to 127 cells, then rounded
+  down to steps of 32 cells up to 4192: no 63-cell cap). Every
+  obstacle ahead is then at least ``D_q`` columns or ``D_q`` rows away, so the
+  ray safely advances to the first time it has crossed ``D_q - 1`` more
+  columns or rows than the current cell's exit,
+  ``min(t_x + (D_q - 1) / |d_x|, t_y + (D_q - 1) / |d_y|)``: along an axis a jump
+  reaches the nearest obstacle ahead exactly, on a diagonal ``sqrt 2`` times
+  further than the Euclidean field above. ``D_q = 1`` is an exact step.
+* ``"numpy"`` (the fallback): the lock-step loop described above, over all
+  rays at once, with the Euclidean quadrant fields capped at :data:`_CAP` cells.
+
+``import numba`` and loading the compiled kernels from numba's on-disk cache
+cost about a second, once per process, the first time a grid is cast on (the
+very first run after an install also compiles them, some seconds; later runs
+reuse the cache). :func:`warm_up` pays that cost up front. The environment
+variable ``ROBOLAB_RAYCAST=numpy`` forces the fallback (``=numba`` requires
+numba), read when the first caster is built. :func:`cast_rays_reference`
+always uses the numpy backend, for results that must be bit-for-bit the same
+on every install.
+
 References
 ----------
 .. [1] J. Amanatides and A. Woo, "A Fast Voxel Traversal Algorithm for Ray
@@ -87,6 +117,8 @@ References
 
 from __future__ import annotations
 
+import os
+import warnings
 import weakref
 
 import numpy as np
@@ -94,7 +126,19 @@ import numpy as np
 from robolab.maps import OccupancyGrid
 from robolab.validation import as_array, as_poses, check_finite, check_positive
 
-__all__ = ["RayCaster", "cast_rays", "castraysingle", "castrays"]
+__all__ = [
+    "RayCaster",
+    "cast_rays",
+    "cast_rays_reference",
+    "castraysingle",
+    "castrays",
+    "default_backend",
+    "warm_up",
+]
+
+BACKENDS = ("numba", "numpy")
+# The compiled kernels module once imported (False: not tried yet, None: unavailable).
+_JIT = False
 
 # Rays are processed in chunks of about this many: large enough that numpy's
 # per-call overhead (and the tail of slow rays) is amortized (measured: 16k-64k
@@ -162,11 +206,25 @@ class RayCaster:
     ----------
     grid : OccupancyGrid
         The map (immutable; :meth:`OccupancyGrid.with_data` makes a new one).
+    backend : {"numba", "numpy"}, optional
+        Which implementation traces the rays (module docstring, *Backends*);
+        default :func:`default_backend`.
+
+    Attributes
+    ----------
+    backend : str
+        The implementation in use.
     """
 
-    def __init__(self, grid: OccupancyGrid):
+    def __init__(self, grid: OccupancyGrid, backend: str | None = None):
         if not isinstance(grid, OccupancyGrid):
             raise TypeError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
+        if backend is None:
+            backend = default_backend()
+        elif backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        elif backend == "numba" and _jit() is None:
+            raise ImportError("backend 'numba' needs numba (pip install numba)")
         self.grid = grid
         self.occupied = grid.occupied.copy()
         h, w = self.occupied.shape
@@ -174,12 +232,16 @@ class RayCaster:
         # (and float round-off there) index the padding instead of wrapping.
         occ = np.zeros((h + 2, w + 2), dtype=bool)
         occ[1:-1, 1:-1] = self.occupied
+        self._shape = (h, w)
+        self.backend = backend
+        if backend == "numba":
+            self._fields = _jit().quadrant_fields(occ)
+            return
         # Quadrant q = [d_x < 0] + 2 [d_y < 0]: flip the map so that the ray goes up-right.
         flips = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
         fields = [_quadrant_field(occ[::fr, ::fc])[::fr, ::fc] for fr, fc in flips]
         self._fields = np.stack(fields).ravel()
         self._qstride = occ.size
-        self._shape = (h, w)
 
     def cast(self, poses, angles, max_range) -> np.ndarray:
         """Ranges for every pose and beam; see :func:`cast_rays` for the contract."""
@@ -187,32 +249,38 @@ class RayCaster:
         angles = as_array("angles", angles, ndim=1, finite=True)
         max_range = check_positive("max_range", max_range)
         n, b = poses.shape[0], angles.shape[0]
-        out = np.empty(n * b)
-        if out.size == 0:
-            return out.reshape(n, b)
+        if n * b == 0:
+            return np.empty((n, b))
         grid = self.grid
         res = grid.resolution
         uv = grid.world_to_map(poses[:, :2])
-        heading = poses[:, 2:3] - grid.origin[2]
-        # Chunk whole poses so that each chunk has about _CHUNK rays.
-        per = max(1, _CHUNK // max(b, 1))
-        for i in range(0, n, per):
-            phi = (heading[i : i + per] + angles[None, :]).ravel()
-            u0 = np.repeat(uv[i : i + per, 0], b)
-            v0 = np.repeat(uv[i : i + per, 1], b)
-            t = self._trace(u0, v0, np.cos(phi), np.sin(phi), max_range / res)
-            out[i * b : i * b + t.size] = t * res
-        return out.reshape(n, b)
+        heading = poses[:, 2] - grid.origin[2]
+        limit = max_range / res  # may overflow to inf (max_range ~ 1e308): no limit then
+        h, w = self._shape
+        if self.backend == "numba":
+            t = _jit().cast(self._fields, uv, heading, angles, limit, h, w)
+        else:
+            t = np.empty((n, b))
+            # Chunk whole poses so that each chunk has about _CHUNK rays.
+            per = max(1, _CHUNK // max(b, 1))
+            for i in range(0, n, per):
+                phi = (heading[i : i + per, None] + angles[None, :]).ravel()
+                u0 = np.repeat(uv[i : i + per, 0], b)
+                v0 = np.repeat(uv[i : i + per, 1], b)
+                t[i : i + per] = self._trace(u0, v0, np.cos(phi), np.sin(phi), limit).reshape(-1, b)
+        # t < 0: no obstacle before the limit. Metres are clipped to max_range so that
+        # round-off in t * res never reports a hit beyond it.
+        return np.where(t < 0, max_range, np.minimum(t * res, max_range))
 
     def _trace(self, u0, v0, dx, dy, limit):
         """Distances (cells) along rays from ``(u0, v0)`` (cells) in unit directions ``(dx, dy)``.
 
-        ``limit`` is the range in cells; rays that do not hit return it.
+        ``limit`` is the range in cells; rays that do not hit return -1.
         """
         h, w = self._shape
         wp = float(w + 2)
         fields = self._fields
-        result = np.full(u0.shape, limit)
+        result = np.full(u0.shape, -1.0)
 
         with np.errstate(divide="ignore", invalid="ignore"):
             idx = np.where(dx == 0, np.inf, 1.0 / dx)
@@ -328,17 +396,75 @@ class RayCaster:
         return out[:-1]
 
 
+def _jit():
+    """The compiled kernels (:mod:`robolab._raycast_jit`), or None when numba is unusable.
+
+    Imported on first use; ``ROBOLAB_RAYCAST=numpy`` keeps numba out entirely.
+    """
+    global _JIT
+    if _JIT is False:
+        _JIT = None
+        if os.environ.get("ROBOLAB_RAYCAST", "").strip().lower() != "numpy":
+            try:
+                from robolab import _raycast_jit
+
+                # compile (or load from numba's cache) both kernels now, on a tiny map,
+                # so that a broken numba install falls back here and not mid-cast
+                tiny = _raycast_jit.quadrant_fields(np.zeros((3, 3), dtype=bool))
+                _raycast_jit.cast(tiny, np.ones((1, 2)), np.zeros(1), np.zeros(1), 1.0, 1, 1)
+                _JIT = _raycast_jit
+            except Exception as exc:  # noqa: BLE001 - any failure of numba means: fall back
+                warnings.warn(
+                    f"robolab.raycast: the compiled ray caster is unavailable ({exc!r}); "
+                    "using the numpy fallback (same ranges, 2-9x slower)",
+                    stacklevel=3,
+                )
+    return _JIT
+
+
+def default_backend() -> str:
+    """The backend new casters use: ``"numba"`` when the compiled kernels load, else ``"numpy"``.
+
+    ``ROBOLAB_RAYCAST`` (``numba`` or ``numpy``) overrides the choice; ``numba``
+    then raises ImportError when numba is not usable.
+    """
+    choice = os.environ.get("ROBOLAB_RAYCAST", "").strip().lower()
+    if choice and choice not in BACKENDS:
+        raise ValueError(f"ROBOLAB_RAYCAST must be one of {BACKENDS}, got {choice!r}")
+    if _jit() is not None:
+        return "numba"
+    if choice == "numba":
+        raise ImportError("ROBOLAB_RAYCAST=numba but numba cannot be imported (pip install numba)")
+    return "numpy"
+
+
+def warm_up() -> str:
+    """Import and load the compiled kernels now (about a second); returns :func:`default_backend`.
+
+    For a process that forks workers (a grading server) or wants its first
+    :func:`cast_rays` call to cost only the grid's own field build.
+    """
+    return default_backend()
+
+
 _CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _caster_for(grid) -> RayCaster:
-    """The cached :class:`RayCaster` of ``grid`` (grids are immutable, so the cache stays valid)."""
+_REFERENCE_CACHE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _caster_for(grid, reference: bool = False) -> RayCaster:
+    """The cached :class:`RayCaster` of ``grid`` (grids are immutable, so the cache stays valid).
+
+    ``reference=True``: the numpy backend's caster (:func:`cast_rays_reference`).
+    """
     if not isinstance(grid, OccupancyGrid):
         raise TypeError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
-    caster = _CACHE.get(grid)
+    cache = _REFERENCE_CACHE if reference else _CACHE
+    caster = cache.get(grid)
     if caster is None:
-        caster = RayCaster(grid)
-        _CACHE[grid] = caster
+        caster = RayCaster(grid, backend="numpy" if reference else None)
+        cache[grid] = caster
     return caster
 
 
@@ -383,7 +509,39 @@ def cast_rays(grid: OccupancyGrid, poses, angles, max_range) -> np.ndarray:
     >>> cast_rays(g, [2.5, 5.5, 0.0], [0.0, np.pi], 20.0)  # doctest: +SKIP
     array([[ 5.5, 20. ]])
     """
-    return _caster_for(grid).cast(poses, angles, max_range)
+    caster = _caster_for(grid)
+    zmax = check_positive("max_range", max_range)
+    p = as_poses("poses", poses)
+    reach = _reach(grid, p) if p.shape[0] and np.isfinite(p).all() else np.inf
+    if zmax <= reach:
+        return caster.cast(poses, angles, zmax)
+    # A range beyond the farthest map corner cannot change the result, but can
+    # overflow in cell units (1e308 m / 0.05 m = inf): trace to the reach only,
+    # and report a ray that got there without a hit as max_range.
+    out = caster.cast(poses, angles, reach)
+    out[out >= reach] = zmax
+    return out
+
+
+def _reach(grid: OccupancyGrid, poses: np.ndarray) -> float:
+    """A distance no ray from ``poses`` travels inside the map: past the farthest corner."""
+    h, w = grid.shape
+    corners = grid.cell_to_world(
+        np.array([[-0.5, -0.5], [-0.5, w - 0.5], [h - 0.5, -0.5], [h - 0.5, w - 0.5]])
+    )
+    far = np.hypot(*(corners[None, :, :] - poses[:, None, :2]).transpose(2, 0, 1)).max()
+    return float(far) + 2.0 * grid.resolution
+
+
+def cast_rays_reference(grid: OccupancyGrid, poses, angles, max_range) -> np.ndarray:
+    """:func:`cast_rays` on the numpy backend, whatever :func:`default_backend` is.
+
+    The two backends agree to ~1e-13 cells, not bit for bit (their float
+    operations differ). Generated data sets that must come out byte-identical
+    on every install, with numba or without (``robolab data``), cast with this.
+    Same parameters, result and errors as :func:`cast_rays`.
+    """
+    return _caster_for(grid, reference=True).cast(poses, angles, max_range)
 
 
 # -- the measurement-model lab's API (pixel units) ---------------------------------------

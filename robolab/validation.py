@@ -16,11 +16,16 @@ __all__ = [
     "as_poses",
     "check_count",
     "check_covariance",
+    "check_covariance_stack",
     "check_finite",
     "check_positive",
     "check_probability_vector",
     "check_rng",
+    "LOG_FLOAT_MAX",
 ]
+
+#: ``log`` of the largest float64: a density whose log exceeds it overflows to inf.
+LOG_FLOAT_MAX = float(np.log(np.finfo(float).max))
 
 
 def _shape_text(shape: Sequence[int | None]) -> str:
@@ -132,6 +137,31 @@ def check_covariance(name: str, value, n: int, *, definite: bool = False) -> np.
     if eig[0] < -1e-12 * max(1.0, eig[-1]) or (definite and eig[0] <= 0):
         kind = "positive definite" if definite else "positive semi-definite"
         raise ValueError(f"{name} must be {kind}, got eigenvalues {eig.tolist()}")
+    return c
+
+
+def check_covariance_stack(name: str, value, n: int, *, definite: bool = False) -> np.ndarray:
+    """Return ``value`` as a stack ``(..., n, n)`` of symmetric PSD (or PD) matrices.
+
+    The vectorized form of :func:`check_covariance`: the message names the first
+    bad matrix by its index in the stack.
+    """
+    c = as_array(name, value, finite=True)
+    if c.ndim < 2 or c.shape[-2:] != (n, n):
+        raise ValueError(f"{name} must have shape (..., {n}, {n}), got {c.shape}")
+    scale = np.maximum(1.0, np.abs(c).max(axis=(-2, -1)))
+    asym = np.abs(c - np.swapaxes(c, -1, -2)).max(axis=(-2, -1)) > 1e-9 * scale
+    if asym.any():
+        k = tuple(int(i) for i in np.argwhere(asym)[0])
+        raise ValueError(f"{name}{list(k)} must be symmetric, got {c[k].tolist()}")
+    eig = np.linalg.eigvalsh(c)
+    bad = eig[..., 0] < -1e-12 * np.maximum(1.0, eig[..., -1])
+    if definite:
+        bad |= eig[..., 0] <= 0
+    if bad.any():
+        k = tuple(int(i) for i in np.argwhere(bad)[0])
+        kind = "positive definite" if definite else "positive semi-definite"
+        raise ValueError(f"{name}{list(k)} must be {kind}, got eigenvalues {eig[k].tolist()}")
     return c
 
 

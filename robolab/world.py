@@ -1,31 +1,31 @@
-"""The cyclic landmark world of seed 002: ``cWorld`` and ``cRobot``.
+"""The cyclic landmark world of lab 03: ``cWorld`` and ``cRobot``.
 
 A robot lives on a cyclic (toroidal) ``size`` x ``size`` square, 100 x 100 by
 default: leaving the square on one side brings it back on the opposite side.
 Four point landmarks sit in the world; the robot measures the Euclidean range
 to every one of them with additive Gaussian noise.
 
-The seed (a MATLAB exercise) does not list its landmarks; robolab uses the
+robolab uses the
 classic layout of this exercise, :data:`LANDMARKS`
 ``[[20, 20], [80, 80], [20, 80], [80, 20]]``.
 
-Conventions and deliberate departures from the seed
----------------------------------------------------
+Conventions and deliberate departures from the MATLAB original
+--------------------------------------------------------------
 - Headings are wrapped to ``[-pi, pi)`` with :func:`robolab.geometry.wrap_angle`
-  (robolab's convention); the seed keeps them in ``[0, 2 pi)``. Both describe the
+  (robolab's convention); the MATLAB version keeps them in ``[0, 2 pi)``. Both describe the
   same direction, so positions and ranges are unchanged.
-- Positions are wrapped to ``[0, size)`` with :func:`wrap_position`; the seed
-  subtracts or adds ``size`` once, which leaves ``x == size`` possible and fails
+- Positions are wrapped to ``[0, size)`` with :func:`wrap_position`; the MATLAB
+  version subtracts or adds ``size`` once, which leaves ``x == size`` possible and fails
   for moves longer than ``size``.
-- :meth:`cRobot.move` draws **one** forward-noise sample per move. The seed draws
-  two independent samples, one for x and one for y, so its robot no longer
+- :meth:`cRobot.move` draws **one** forward-noise sample per move. The MATLAB version
+  draws two independent samples, one for x and one for y, so its robot no longer
   moves along its heading (the displacement's direction is random even with
   ``turn_noise = 0``). That is a bug, not a model.
 - Ranges are plain Euclidean distances, **without** the cyclic wrap (as in the
-  seed): a robot at x = 95 is 75 (not 25) away from a landmark at x = 20.
+  MATLAB version): a robot at x = 95 is 75 (not 25) away from a landmark at x = 20.
 
-The class names keep the seed's camelCase (``cWorld``, ``cRobot``) because the
-lab's text and the seed refer to them by these names.
+The class names keep the MATLAB camelCase (``cWorld``, ``cRobot``) because the
+lab's text refers to them by these names.
 """
 
 from __future__ import annotations
@@ -40,8 +40,8 @@ __all__ = ["LANDMARKS", "WORLD_SIZE", "cWorld", "cRobot", "wrap_position", "land
 #: Side of the square cyclic world (same unit as the ranges).
 WORLD_SIZE = 100.0
 
-#: The exercise's four landmarks (x, y), one per row (not listed in the seed;
-#: the classic layout of this exercise).
+#: The exercise's four landmarks (x, y), one per row (the classic layout of
+#: this exercise).
 LANDMARKS = np.array([[20.0, 20.0], [80.0, 80.0], [20.0, 80.0], [80.0, 20.0]])
 
 
@@ -71,7 +71,7 @@ def wrap_position(values, size: float = WORLD_SIZE):
 
 
 def landmark_ranges(xy, landmarks) -> np.ndarray:
-    """Euclidean ranges from positions to landmarks (no cyclic wrap, as in seed 002).
+    """Euclidean ranges from positions to landmarks (no cyclic wrap).
 
     Parameters
     ----------
@@ -95,8 +95,8 @@ def landmark_ranges(xy, landmarks) -> np.ndarray:
     return np.hypot(d[..., 0], d[..., 1])
 
 
-class cWorld:  # noqa: N801 - the seed's name, used throughout the lab
-    """The cyclic landmark world of seed 002.
+class cWorld:  # noqa: N801 - the name the lab uses throughout
+    """The cyclic landmark world of lab 03.
 
     Parameters
     ----------
@@ -163,10 +163,10 @@ class cWorld:  # noqa: N801 - the seed's name, used throughout the lab
         return ax
 
 
-class cRobot:  # noqa: N801 - the seed's name, used throughout the lab
-    """A robot in :class:`cWorld` with the seed's noisy motion and range sensor.
+class cRobot:  # noqa: N801 - the name the lab uses throughout
+    """A robot in :class:`cWorld` with noisy motion and a noisy range sensor.
 
-    The robot starts at a uniformly random pose (as in the seed's constructor)
+    The robot starts at a uniformly random pose (as in the MATLAB constructor)
     and without noise; use :meth:`set` and :meth:`set_noise`.
 
     Parameters
@@ -182,7 +182,7 @@ class cRobot:  # noqa: N801 - the seed's name, used throughout the lab
     x, y : float
         Position in ``[0, size)``.
     theta : float
-        Heading in ``[-pi, pi)`` (robolab's convention; the seed uses ``[0, 2 pi)``).
+        Heading in ``[-pi, pi)`` (robolab's convention; the MATLAB version uses ``[0, 2 pi)``).
     forward_noise, turn_noise, sense_noise : float
         Standard deviations of the translation, rotation and range noise.
     """
@@ -260,7 +260,7 @@ class cRobot:  # noqa: N801 - the seed's name, used throughout the lab
         return self
 
     def move(self, u_rotation, u_translation):
-        """Rotate, then translate along the new heading, with noise (seed 002, section b).
+        """Rotate, then translate along the new heading, with noise (lab 03, section b).
 
         .. math::
 
@@ -272,7 +272,7 @@ class cRobot:  # noqa: N801 - the seed's name, used throughout the lab
             y' = (y + d \\sin\\theta') \\bmod \\text{size}
 
         A single forward-noise sample ``eps_d`` moves the robot along its heading.
-        The seed's MATLAB draws two (one for x, one for y), which moves it off its
+        The MATLAB version draws two (one for x, one for y), which moves it off its
         heading: robolab fixes that. The turn noise is drawn first, then the
         forward noise, both from ``self.rng``.
 
@@ -298,12 +298,12 @@ class cRobot:  # noqa: N801 - the seed's name, used throughout the lab
         return self
 
     def sense(self, world: cWorld) -> np.ndarray:
-        """Noisy ranges to every landmark of ``world`` (seed 002, section c).
+        """Noisy ranges to every landmark of ``world`` (lab 03, section c).
 
         .. math:: z_k = \\sqrt{(x - l_{k,x})^2 + (y - l_{k,y})^2} + \\varepsilon_k,
                   \\quad \\varepsilon_k \\sim \\mathcal N(0, \\sigma_{sense}^2) \\text{ i.i.d.}
 
-        Distances are plain Euclidean, without the cyclic wrap, as in the seed.
+        Distances are plain Euclidean, without the cyclic wrap.
 
         Parameters
         ----------
@@ -320,7 +320,7 @@ class cRobot:  # noqa: N801 - the seed's name, used throughout the lab
         return r + self.rng.normal(0.0, self.sense_noise, size=r.shape)
 
     def measurement_probability(self, measured, world: cWorld) -> float:
-        """Likelihood of measured ranges at this robot's pose (seed 002, section d).
+        """Likelihood of measured ranges at this robot's pose (lab 03, section d).
 
         .. math:: p(z \\mid x, m) = \\prod_k \\mathcal N(z_k;\\ \\hat r_k(x), \\sigma_{sense}^2)
 

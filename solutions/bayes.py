@@ -27,6 +27,16 @@ __all__ = ["bayes_posterior", "door_open_posterior", "bayes_filter_step"]
 COLUMN_SUM_ATOL = 1e-9
 
 
+def _relative(likelihood: np.ndarray) -> np.ndarray:
+    """``likelihood / max(likelihood)``: the same posterior, with no under- or overflow.
+
+    Only ratios of likelihoods matter; scaling first keeps tiny (subnormal) and huge
+    (1e308) likelihoods from rounding to 0 or inf when multiplied and summed.
+    """
+    top = likelihood.max(initial=0.0)
+    return likelihood / top if top > 0 else likelihood
+
+
 def _normalize(unnormalized: np.ndarray) -> np.ndarray:
     """Divide by the sum (the evidence), refusing a measurement impossible under the belief."""
     evidence = unnormalized.sum()
@@ -76,7 +86,7 @@ def bayes_posterior(likelihood, prior):
     likelihood = as_array(
         "likelihood", likelihood, shape=prior.shape, finite=True, nonnegative=True
     )
-    return _normalize(likelihood * prior)
+    return _normalize(_relative(likelihood) * prior)
 
 
 def _probability(name: str, value):
@@ -208,4 +218,4 @@ def bayes_filter_step(belief, action_model, measurement_likelihood):
         "measurement_likelihood", measurement_likelihood, shape=(n,), finite=True, nonnegative=True
     )
     predicted = action_model @ belief
-    return _normalize(likelihood * predicted)
+    return _normalize(_relative(likelihood) * predicted)

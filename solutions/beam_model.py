@@ -55,7 +55,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
-from scipy.special import ndtr
+from scipy.special import erf
 
 from robolab.geometry import wrap_angle
 from robolab.maps import OccupancyGrid
@@ -120,6 +120,17 @@ def _out(arr: np.ndarray):
     return float(arr) if arr.ndim == 0 else arr
 
 
+def _hit_mass(z_star: np.ndarray, z_max: float, sigma: float) -> np.ndarray:
+    """``Phi((z_max - z*) / sigma) - Phi(-z* / sigma)``, accurate for any sigma.
+
+    As ``(erf(b / sqrt 2) - erf(a / sqrt 2)) / 2`` with ``a <= 0 <= b``: the terms never
+    cancel, even when ``sigma >> z_max`` makes both tiny (``ndtr(b) - ndtr(a)`` would
+    round to 0 there, and the normalizer to inf).
+    """
+    root2 = np.sqrt(2.0)
+    return 0.5 * (erf((z_max - z_star) / sigma / root2) - erf(-z_star / sigma / root2))
+
+
 def p_hit(z, z_star, z_max, sigma_hit):
     r"""Correct range with local measurement noise: a Gaussian truncated to :math:`[0, z_{max}]`.
 
@@ -179,11 +190,16 @@ def p_hit(z, z_star, z_max, sigma_hit):
     sigma_hit = check_positive("sigma_hit", sigma_hit)
     z, z_star = _broadcast(_ranges("z", z), _ranges("z_star", z_star))
     _check_expected(z_star, z_max)
-    eta = 1.0 / (ndtr((z_max - z_star) / sigma_hit) - ndtr(-z_star / sigma_hit))
+    mass = _hit_mass(z_star, z_max, sigma_hit)
     u = (z - z_star) / sigma_hit
-    gauss = np.exp(-0.5 * u * u) / (sigma_hit * np.sqrt(2.0 * np.pi))
-    inside = (z >= 0.0) & (z <= z_max)
-    return _out(np.where(inside, eta * gauss, 0.0))
+    with np.errstate(over="ignore", divide="ignore"):
+        gauss = np.exp(-0.5 * u * u) / (sigma_hit * np.sqrt(2.0 * np.pi))
+        out = np.where((z >= 0.0) & (z <= z_max), gauss / mass, 0.0)
+    if not np.all(np.isfinite(out)):
+        raise ValueError(
+            f"sigma_hit={sigma_hit!r} is too small: the Gaussian density overflows float64"
+        )
+    return _out(out)
 
 
 def _short_mass(z_star: np.ndarray, lambda_short: float) -> tuple[np.ndarray, np.ndarray]:
@@ -368,7 +384,7 @@ def _log_mixture(z: np.ndarray, z_star: np.ndarray, prm: dict[str, float]) -> np
     with np.errstate(divide="ignore"):
         log_w = {k: np.log(prm[k]) for k in WEIGHT_KEYS}
         # log p_hit: log eta - log(sigma sqrt(2 pi)) - u^2 / 2 on [0, zmax].
-        log_norm = np.log(ndtr((zmax - z_star) / sigma) - ndtr(-z_star / sigma))
+        log_norm = np.log(_hit_mass(z_star, zmax, sigma))
         u = (z - z_star) / sigma
         in_range = (z >= 0.0) & (z <= zmax)
         hit = np.where(

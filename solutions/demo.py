@@ -41,6 +41,8 @@ def normalize(weights) -> np.ndarray:
         entry, or sums to zero.
     """
     w = as_array("weights", weights, ndim=1, finite=True, nonnegative=True)
+    if w.size and w.max() > 0:
+        w = w / w.max()  # the same ratios; the sum of weights near 1e308 cannot overflow
     total = w.sum()
     if w.size == 0 or total <= 0.0:
         raise ValueError(
@@ -50,8 +52,17 @@ def normalize(weights) -> np.ndarray:
 
 
 def wrap(angle):
-    """Wrap an angle (or an array of angles) to ``[-pi, pi)``; ``wrap(pi) == -pi``."""
-    return wrap_angle(angle)
+    """Wrap an angle (or an array of angles) to ``[-pi, pi)``; ``wrap(pi) == -pi``.
+
+    Written out rather than calling :func:`robolab.geometry.wrap_angle`, which the
+    grader disables while ``wrap`` is graded (``robolab.grading.delegation``).
+    """
+    a = np.asarray(angle, dtype=float)
+    # Subtract the whole turns that take a into [-pi, pi): k = floor((a + pi) / 2 pi).
+    wrapped = a - 2.0 * np.pi * np.floor((a + np.pi) / (2.0 * np.pi))
+    # Rounding can land exactly on +pi (a just below -pi, or at an odd multiple of pi).
+    wrapped = np.where(wrapped >= np.pi, wrapped - 2.0 * np.pi, wrapped)
+    return float(wrapped) if wrapped.ndim == 0 else wrapped
 
 
 def mean_pose(poses) -> np.ndarray:

@@ -29,7 +29,7 @@ from filterpy.kalman import ExtendedKalmanFilter
 from robolab.geometry import wrap_angle
 from robolab.maps import OccupancyGrid
 from robolab.raycast import cast_rays
-from robolab.validation import as_array, check_finite, check_positive
+from robolab.validation import as_array, check_covariance, check_finite, check_positive
 
 __all__ = [
     "transition_model",
@@ -531,11 +531,12 @@ def _as_filter(ekf) -> ExtendedKalmanFilter:
     x = as_array("ekf x", x, finite=True).reshape(-1)
     if x.shape != (3,):
         raise ValueError(f"ekf x must hold 3 numbers (x, y, theta), got shape {np.shape(x)}")
-    p = as_array("ekf P", p, shape=(3, 3), finite=True)
-    q = as_array("ekf Q", q, shape=(3, 3), finite=True)
+    p = check_covariance("ekf P", p, 3)
+    q = check_covariance("ekf Q", q, 3)
     r = as_array("ekf R", r, ndim=2, finite=True)
     if r.shape[0] != r.shape[1] or r.shape[0] < 1:
         raise ValueError(f"ekf R must be a square (B, B) matrix, got shape {r.shape}")
+    r = check_covariance("ekf R", r, r.shape[0])
     if f is None:
         f = ExtendedKalmanFilter(dim_x=3, dim_z=r.shape[0])
     f.x, f.P, f.Q, f.R = x.copy(), p.copy(), q.copy(), r.copy()

@@ -44,7 +44,14 @@ import numpy as np
 
 from robolab.fiducials import DT, as_robot, sqrt_psd
 from robolab.geometry import wrap_angle
-from robolab.validation import as_array, check_count, check_covariance, check_positive, check_rng
+from robolab.validation import (
+    as_array,
+    check_count,
+    check_covariance,
+    check_covariance_stack,
+    check_positive,
+    check_rng,
+)
 
 __all__ = [
     "init_particles",
@@ -195,8 +202,11 @@ def h_jacobian(landmark, pose):
         H = \begin{pmatrix} \delta_x / \sqrt q & \delta_y / \sqrt q \\
                             -\delta_y / q & \delta_x / q \end{pmatrix}
 
-    :math:`q` is floored at :data:`MIN_SQ_RANGE` so that a landmark estimate
-    on top of the robot gives a large but finite Jacobian.
+    In the bearing row :math:`q` is floored at :data:`MIN_SQ_RANGE`, and the range
+    row is always a unit vector (the x axis for a landmark exactly on the robot),
+    so that a landmark estimate on top of the robot gives a large but finite
+    Jacobian whose inverse stays bounded; :math:`\sqrt q` is computed with
+    ``hypot``, which does not overflow for far landmarks.
 
     Parameters
     ----------
@@ -258,13 +268,13 @@ def update_landmark(mean, cov, z, pose, Qt):
         :math:`\ln \mathcal N(z; \hat z, Q)`, finite.
     """
     mu = _last_dim("mean", mean, 2)
-    sigma = as_array("cov", cov, finite=True)
-    if sigma.ndim < 2 or sigma.shape[-2:] != (2, 2):
-        raise ValueError(f"cov must have shape (..., 2, 2), got {sigma.shape}")
+    sigma = check_covariance_stack("cov", cov, 2, definite=True)
     zz = _last_dim("z", z, 2)
     p = _last_dim("pose", pose, 3)
     qt = check_covariance("Qt", Qt, 2, definite=True)
-    return _ekf_update(mu, sigma, zz, p, qt)
+    out = _ekf_update(mu, sigma, zz, p, qt)
+    _check_update(out, "the update")
+    return out
 
 
 def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True):
@@ -284,6 +294,11 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
        weights stay finite even when every likelihood underflows.
     4. Resample with the low-variance sampler (Table 4.4), unless ``resample``
        is False or there was no observation (then the weights did not change).
+       With a number for ``resample``, resample only when the effective sample
+       size :math:`N_{eff} = 1 / \sum_k w_k^2` falls below ``resample * M``
+       (selective resampling, Grisetti et al. 2007; ``0.5`` is the usual
+       choice): resampling after every measurement throws away particles that
+       are nearly as good as the kept ones and depletes the paths.
        Resampling copies the chosen particles' arrays (fancy indexing): no two
        particles share landmark memory, and the input ``state`` is not modified.
 
@@ -303,9 +318,11 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
     rng : numpy.random.Generator
     dt : float
         Time step in seconds.
-    resample : bool
-        Resample after weighting (the book always does). With False the new
-        state keeps the normalized importance weights.
+    resample : bool or float
+        True (default): resample after every step with an observation, as the
+        book. False: never; the new state keeps the normalized importance
+        weights. A number in (0, 1]: resample only when
+        :math:`N_{eff} <` ``resample * M`` (0.5: below half the particles).
 
     Returns
     -------
@@ -317,9 +334,13 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
     obs = _observations(observations, n_landmarks)
     qt = check_covariance("Qt", Qt, 2, definite=True)
     poses = predict_poses(s["poses"], command, Q, rng, dt)  # checks command, Q, rng, dt
-    means, covs, seen = s["means"].copy(), s["covs"].copy(), s["seen"].copy()
     log_w = np.log(s["weights"], out=np.full_like(s["weights"], -np.inf), where=s["weights"] > 0)
-    ids = obs[:, 2].astype(np.intp)
+    ess = _ess_fraction(resample)
+    # Work on copies of the observed landmarks' columns only; the full arrays are
+    # copied once, at the end (gathered by the resampling indices when resampling).
+    touched, cols = np.unique(obs[:, 2].astype(np.intp), return_inverse=True)
+    means, covs, seen = s["means"][:, touched], s["covs"][:, touched], s["seen"][:, touched]
+    ids = cols.reshape(-1)
     remaining = np.arange(len(obs))
     while remaining.size:  # rounds of distinct landmark ids (one round unless ids repeat)
         _, first = np.unique(ids[remaining], return_index=True)
@@ -332,14 +353,19 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
             new_mu = np.where(known[..., None], new_mu, init_mu)
             new_sigma = np.where(known[..., None, None], new_sigma, init_sigma)
             log_like = np.where(known, log_like, LOG_P0)
+        _check_update((new_mu, new_sigma, log_like), f"observations {obs[batch].tolist()}")
         means[:, j], covs[:, j], seen[:, j] = new_mu, new_sigma, True
         log_w = log_w + log_like.sum(axis=1)
     weights = _normalize_log_weights(log_w)
-    new = {"poses": poses, "means": means, "covs": covs, "seen": seen, "weights": weights}
-    if resample and len(obs):
-        idx = _low_variance_resample(weights, rng)
-        new = {key: value[idx] for key, value in new.items() if key != "weights"}
-        new["weights"] = np.full(len(idx), 1.0 / len(idx))
+    do_resample = bool(resample) and len(obs) > 0 and (
+        ess is None or 1.0 / np.sum(weights**2) < ess * len(weights)
+    )
+    idx = _low_variance_resample(weights, rng) if do_resample else slice(None)
+    new = {"poses": poses[idx]}
+    for key, part in (("means", means), ("covs", covs), ("seen", seen)):
+        new[key] = s[key][idx].copy() if isinstance(idx, slice) else s[key][idx]
+        new[key][:, touched] = part[idx]
+    new["weights"] = weights if isinstance(idx, slice) else np.full(len(poses), 1.0 / len(poses))
     return new
 
 
@@ -439,33 +465,108 @@ def _last_dim(name, value, n) -> np.ndarray:
 
 
 def _inv2(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse and determinant of a stack of 2 x 2 matrices, in closed form."""
-    det = a[..., 0, 0] * a[..., 1, 1] - a[..., 0, 1] * a[..., 1, 0]
-    inv = np.empty_like(a)
-    inv[..., 0, 0] = a[..., 1, 1]
-    inv[..., 1, 1] = a[..., 0, 0]
-    inv[..., 0, 1] = -a[..., 0, 1]
-    inv[..., 1, 0] = -a[..., 1, 0]
-    return inv / det[..., None, None], det
+    """Inverse and log-determinant of a stack of 2 x 2 matrices, in closed form.
+
+    Each matrix is scaled by its largest entry first, so that entries of 1e-300
+    or 1e200 neither underflow nor overflow in the determinant:
+    ``inv(s A') = inv(A') / s`` and ``log|s A'| = 2 log s + log|A'|``.
+    """
+    s = np.abs(a).max(axis=(-2, -1))
+    s = np.where(s > 0, s, 1.0)
+    b = a / s[..., None, None]
+    det = b[..., 0, 0] * b[..., 1, 1] - b[..., 0, 1] * b[..., 1, 0]
+    inv = np.empty_like(b)
+    inv[..., 0, 0] = b[..., 1, 1]
+    inv[..., 1, 1] = b[..., 0, 0]
+    inv[..., 0, 1] = -b[..., 0, 1]
+    inv[..., 1, 0] = -b[..., 1, 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return inv / (det * s)[..., None, None], 2.0 * np.log(s) + np.log(det)
 
 
 def _ekf_update(mu, sigma, zz, p, qt):
-    """The body of :func:`update_landmark` on checked arrays (called once per round by the step)."""
-    zhat = _range_bearing(mu, p)
-    H = _range_bearing_jacobian(mu, p)
-    Ht = np.swapaxes(H, -1, -2)
-    PHt = sigma @ Ht
-    S = H @ PHt + qt
-    S_inv, det_S = _inv2(S)
-    K = PHt @ S_inv
-    e = zz - zhat
-    e = np.concatenate([e[..., :1], wrap_angle(e[..., 1:2])], -1)
-    new_mean = mu + (K @ e[..., None])[..., 0]
-    new_cov = sigma - K @ H @ sigma
-    new_cov = 0.5 * (new_cov + np.swapaxes(new_cov, -1, -2))
-    maha = np.einsum("...i,...ij,...j->...", e, S_inv, e)
-    log_like = -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * np.log(det_S)
+    r"""The body of :func:`update_landmark` on checked arrays (called once per round by the step).
+
+    The batched 2 x 2 products are written out entry by entry: numpy's ``@`` on
+    stacks of 2 x 2 matrices costs several times the arithmetic itself. With
+    :math:`H = \begin{pmatrix} a & b \\ c & d \end{pmatrix}` (:func:`h_jacobian`),
+    :math:`P = \Sigma H^T`, :math:`Q = H P + Q_t`, :math:`K = P Q^{-1}`,
+    :math:`\mu' = \mu + K e`, :math:`\Sigma' = \Sigma - (K H) \Sigma`
+    (symmetrized), :math:`\ln w = -\tfrac12 e^T Q^{-1} e - \ln 2\pi - \tfrac12 \ln|Q|`.
+    The geometry uses ``hypot`` (no overflow of the squared range) and :math:`Q` is
+    inverted after scaling by its largest entry (no under- or overflow of its
+    determinant), as :func:`_inv2` does.
+    """
+    dx = mu[..., 0] - p[..., 0]
+    dy = mu[..., 1] - p[..., 1]
+    dist = np.hypot(dx, dy)
+    # z_hat = h(mu, x) and H = dh/dmu (the bodies of h and h_jacobian, sharing dx, dy)
+    e0 = zz[..., 0] - dist
+    e1 = wrap_angle(zz[..., 1] - wrap_angle(np.arctan2(dy, dx) - p[..., 2]))
+    safe = dist > 0
+    a = np.where(safe, dx / np.where(safe, dist, 1.0), 1.0)  # unit direction (x axis at 0)
+    b = np.where(safe, dy / np.where(safe, dist, 1.0), 0.0)
+    rate = np.maximum(dist, np.sqrt(MIN_SQ_RANGE))  # the bearing's rate 1 / r, bounded
+    c, d = -b / rate, a / rate
+    s00, s01, s10, s11 = sigma[..., 0, 0], sigma[..., 0, 1], sigma[..., 1, 0], sigma[..., 1, 1]
+    # P = Sigma H^T
+    p00, p01 = s00 * a + s01 * b, s00 * c + s01 * d
+    p10, p11 = s10 * a + s11 * b, s10 * c + s11 * d
+    # Q = H P + Q_t, scaled by its largest entry before the determinant and inverse
+    q00 = a * p00 + b * p10 + qt[0, 0]
+    q01 = a * p01 + b * p11 + qt[0, 1]
+    q10 = c * p00 + d * p10 + qt[1, 0]
+    q11 = c * p01 + d * p11 + qt[1, 1]
+    scale = np.maximum(np.maximum(np.abs(q00), np.abs(q01)), np.maximum(np.abs(q10), np.abs(q11)))
+    scale = np.where(scale > 0, scale, 1.0)
+    u00, u01, u10, u11 = q00 / scale, q01 / scale, q10 / scale, q11 / scale
+    det = u00 * u11 - u01 * u10
+    with np.errstate(divide="ignore", invalid="ignore"):
+        i00, i01, i10, i11 = (u11 / det / scale, -u01 / det / scale,
+                              -u10 / det / scale, u00 / det / scale)
+        logdet = 2.0 * np.log(scale) + np.log(det)
+    # K = P Q^-1
+    k00, k01 = p00 * i00 + p01 * i10, p00 * i01 + p01 * i11
+    k10, k11 = p10 * i00 + p11 * i10, p10 * i01 + p11 * i11
+    shape = np.broadcast_shapes(mu.shape, sigma.shape[:-1], zz.shape, p.shape[:-1] + (2,))
+    new_mean = np.empty(shape)
+    new_mean[..., 0] = mu[..., 0] + k00 * e0 + k01 * e1
+    new_mean[..., 1] = mu[..., 1] + k10 * e0 + k11 * e1
+    # Sigma' = Sigma - (K H) Sigma, symmetrized
+    m00, m01 = k00 * a + k01 * c, k00 * b + k01 * d
+    m10, m11 = k10 * a + k11 * c, k10 * b + k11 * d
+    new_cov = np.empty(shape + (2,))
+    new_cov[..., 0, 0] = s00 - (m00 * s00 + m01 * s10)
+    new_cov[..., 1, 1] = s11 - (m10 * s01 + m11 * s11)
+    off = 0.5 * ((s01 - (m00 * s01 + m01 * s11)) + (s10 - (m10 * s00 + m11 * s10)))
+    new_cov[..., 0, 1] = off
+    new_cov[..., 1, 0] = off
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge range: refused by the caller
+        maha = e0 * (i00 * e0 + i01 * e1) + e1 * (i10 * e0 + i11 * e1)
+    log_like = -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * logdet
     return new_mean, new_cov, log_like
+
+
+def _ess_fraction(resample) -> float | None:
+    """None for ``resample`` True / False (always / never), else the ESS fraction in (0, 1]."""
+    if isinstance(resample, (bool, np.bool_)):
+        return None
+    fraction = check_positive("resample", resample)
+    if fraction > 1:
+        raise ValueError(
+            f"resample must be True, False or an ESS fraction in (0, 1], got {resample!r}"
+        )
+    return fraction
+
+
+def _check_update(update, what) -> None:
+    """Raise if an EKF update or initialization left the range of float64."""
+    mean, cov, log_like = update
+    if not (np.isfinite(mean).all() and np.isfinite(cov).all() and not np.isnan(log_like).any()):
+        raise ValueError(
+            f"{what}: the landmark estimate is not finite in float64 (a range or covariance "
+            f"too large or too small for the landmark's mean and covariance)"
+        )
 
 
 def _sample_motion(p, u, q_sqrt, rng, dt):
@@ -489,9 +590,12 @@ def _range_bearing_jacobian(lm, p):
     """The body of :func:`h_jacobian` on checked arrays."""
     dx = lm[..., 0] - p[..., 0]
     dy = lm[..., 1] - p[..., 1]
-    q = np.maximum(dx * dx + dy * dy, MIN_SQ_RANGE)
-    r = np.sqrt(q)
-    return np.stack([np.stack([dx / r, dy / r], -1), np.stack([-dy / q, dx / q], -1)], -2)
+    d = np.hypot(dx, dy)  # no overflow of dx^2 + dy^2
+    safe = d > 0
+    c = np.where(safe, dx / np.where(safe, d, 1.0), 1.0)  # the unit direction (x axis at d = 0)
+    s = np.where(safe, dy / np.where(safe, d, 1.0), 0.0)
+    r = np.maximum(d, np.sqrt(MIN_SQ_RANGE))  # the bearing's rate: 1 / r, bounded near the robot
+    return np.stack([np.stack([c, s], -1), np.stack([-s / r, c / r], -1)], -2)
 
 
 def _landmark_from_observation(z, pose, Qt):
@@ -501,7 +605,8 @@ def _landmark_from_observation(z, pose, Qt):
     mu = np.stack([pose[..., 0] + r * np.cos(angle), pose[..., 1] + r * np.sin(angle)], -1)
     mu = np.broadcast_to(mu, np.broadcast_shapes(mu.shape, pose.shape[:-1] + (2,)))
     H_inv, _ = _inv2(_range_bearing_jacobian(mu, pose))
-    return mu.copy(), H_inv @ Qt @ np.swapaxes(H_inv, -1, -2)
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge range: checked by the caller
+        return mu.copy(), H_inv @ Qt @ np.swapaxes(H_inv, -1, -2)
 
 
 def _normalize_log_weights(log_w: np.ndarray) -> np.ndarray:

@@ -14,6 +14,7 @@ import numpy as np
 
 from robolab.geometry import wrap_angle
 from robolab.validation import (
+    LOG_FLOAT_MAX,
     as_array,
     as_poses,
     check_count,
@@ -136,12 +137,19 @@ def measurement_probability(measured_ranges, particles, landmarks, sensor_noise)
     sq = np.zeros(p.shape[0])  # sum_k (z_k - r_hat_k)^2 for every particle
     for k in range(lm.shape[0]):  # a loop over the K landmarks; each pass covers all particles
         # (an (N, K) broadcast would be ~20x slower: numpy's inner loop would run over only K = 4)
-        r_hat = np.sqrt((x - lm[k, 0]) ** 2 + (y - lm[k, 1]) ** 2)
+        r_hat = np.hypot(x - lm[k, 0], y - lm[k, 1])  # no overflow of the squares
         sq += (z[k] - r_hat) ** 2
     # The product of K Gaussians as one exp of the summed exponent:
     # prod_k N(z_k; r_k, s^2) = exp(-sum_k (z_k - r_k)^2 / (2 s^2)) / (sqrt(2 pi) s)^K
-    log_norm = lm.shape[0] * np.log(np.sqrt(2.0 * np.pi) * sigma)
-    return np.exp(-0.5 * sq / sigma**2 - log_norm)
+    # (sq / sigma) / sigma: sigma**2 underflows to 0 for sigma < 1e-162 (0 / 0 = NaN)
+    with np.errstate(over="ignore"):  # a residual far beyond sigma: log weight -inf, weight 0
+        log_w = -0.5 * (sq / sigma) / sigma - lm.shape[0] * np.log(np.sqrt(2.0 * np.pi) * sigma)
+    if np.any(log_w > LOG_FLOAT_MAX):
+        raise ValueError(
+            f"sensor_noise={sigma!r} is too small: the Gaussian density of the best particle, "
+            f"exp({log_w.max():.4g}), overflows float64"
+        )
+    return np.exp(log_w)
 
 
 def low_variance_resample(particles, weights, rng):
@@ -193,13 +201,17 @@ def low_variance_resample(particles, weights, rng):
         raise ValueError("weights must be finite (no NaN or inf)")
     if np.any(w < 0):
         raise ValueError(f"weights must be non-negative, got minimum {w.min()}")
-    total = w.sum()
+    with np.errstate(over="ignore"):  # weights near 1e308: rescaled below
+        total = w.sum()
     if not total > 0:
         raise ValueError(
             "weights are all zero: cannot resample (every particle has zero likelihood)"
         )
     check_rng(rng)
     r = rng.uniform(0.0, 1.0 / n)
+    if not np.isfinite(total):  # weights near 1e308 overflow the sum: scale them first
+        w = w / w.max()
+        total = w.sum()
     c = np.cumsum(w / total)
     pointers = r + np.arange(n) / n
     idx = np.searchsorted(c, pointers, side="right")

@@ -27,7 +27,8 @@ from scipy import ndimage
 
 from robolab.geometry import angle_diff, compose, wrap_angle
 from robolab.maps import OccupancyGrid
-from robolab.validation import as_array, as_poses, check_positive
+from robolab.tablecache import cached_table, freeze
+from robolab.validation import LOG_FLOAT_MAX, as_array, as_poses, check_positive
 from solutions.landmark_pf import low_variance_resample  # lab 03's, reused (Table 4.4)
 
 __all__ = [
@@ -313,11 +314,13 @@ def likelihood_field(grid, sigma_hit, max_dist):
         ``"distance"``: (H, W) metres, indexed ``[row, col]`` like ``grid.data``;
         ``"likelihood"``: (H, W) :math:`p_{hit}` in 1/m;
         ``"resolution"``: float (m/cell); ``"origin"``: (3,) the grid's origin;
-        ``"sigma_hit"``, ``"max_dist"``: floats. Plain data only.
+        ``"sigma_hit"``, ``"max_dist"``: floats. Plain data only; the two
+        arrays are read-only (:func:`robolab.tablecache.freeze`), which lets
+        :func:`likelihood_field_model` reuse its per-cell table from step to step.
     """
     if not isinstance(grid, OccupancyGrid):
         raise TypeError(f"grid must be a robolab.maps.OccupancyGrid, got {type(grid).__name__}")
-    sigma = check_positive("sigma_hit", sigma_hit)
+    sigma = _sigma_hit("sigma_hit", sigma_hit)
     dmax = check_positive("max_dist", max_dist)
     occupied = grid.occupied
     if occupied.any():
@@ -325,9 +328,10 @@ def likelihood_field(grid, sigma_hit, max_dist):
         dist = np.minimum(dist, dmax)
     else:
         dist = np.full(grid.shape, dmax)
+    # read-only: likelihood_field_model caches its per-cell table per (field, parameters)
     return {
-        "distance": dist,
-        "likelihood": _gaussian(dist, sigma),
+        "distance": freeze(dist),
+        "likelihood": freeze(_gaussian(dist, sigma)),
         "resolution": float(grid.resolution),
         "origin": np.array(grid.origin, dtype=float),
         "sigma_hit": sigma,
@@ -384,21 +388,13 @@ def likelihood_field_model(scan, particles, field, params):
     """
     p = as_poses("particles", particles)
     ranges, angles, _, rmax = _scan_arrays(scan)
-    dist, sigma, dmax, geometry = _field_arrays(field)
     prm = _params(params)
     z_hit, z_rand = _mixture(prm)
     laser = as_array("params['laser_pose']", prm["laser_pose"], shape=(3,), finite=True)
+    table, geometry = _model_table(field, z_hit, z_rand, rmax)
     use = _used_beams(ranges, scan, prm)
     if not use.any():
         return np.zeros(p.shape[0])
-    # per-cell log mixture, with a one-cell border scored as d = max_dist (off the map)
-    log_hit = math.log(z_hit) if z_hit > 0 else -np.inf
-    padded = np.pad(dist, 1, constant_values=dmax)
-    if z_rand > 0:  # log(z_hit N(d) + z_rand / z_max), never log(0)
-        table = np.log(z_hit * _gaussian(padded, sigma) + z_rand / rmax)
-    else:
-        table = log_hit + _log_gaussian(padded, sigma)
-    table = table.astype(np.float32)  # half the memory for the random-access gather below
     # Endpoints in continuous map coordinates (cells). world_to_map is affine, so the
     # laser's map coordinates plus each beam rotated by (heading - map yaw) / resolution
     # equal world_to_map of the endpoint; float32 halves the memory traffic.
@@ -603,8 +599,15 @@ def kld_sample_size(k, epsilon, z):
         raise ValueError(f"z must be finite, got {z!r}")
     km1 = np.maximum(kk - 1, 1).astype(float)
     b = 2.0 / (9.0 * km1)
-    n = np.ceil(km1 / (2.0 * eps) * (1.0 - b + np.sqrt(b) * zq) ** 3)
-    n = np.where(kk == 1, 1, np.maximum(n, 1)).astype(np.int64)
+    with np.errstate(over="ignore"):
+        n = np.ceil(km1 / (2.0 * eps) * (1.0 - b + np.sqrt(b) * zq) ** 3)
+    n = np.where(kk == 1, 1.0, np.maximum(n, 1.0))
+    if np.any(n >= 2.0**63):  # not representable as int64 (it would wrap to negative)
+        raise ValueError(
+            f"epsilon={epsilon!r} is too small: the bound needs {np.max(n):.3g} particles, "
+            f"more than an int64 holds"
+        )
+    n = n.astype(np.int64)
     return int(n) if n.ndim == 0 else n
 
 
@@ -776,7 +779,15 @@ def _used_beams(ranges, scan, prm) -> np.ndarray:
         return use & np.isfinite(ranges) & (ranges >= rmin) & (ranges < rmax)
 
 
-def _field_arrays(field):
+def _model_table(field, z_hit, z_rand, rmax):
+    """The per-cell log mixture of Table 6.3 over the padded field, and the field's geometry.
+
+    ``log(z_hit N(d; 0, sigma^2) + z_rand / z_max)`` per cell, with a one-cell border
+    scored as ``d = max_dist`` (off the map), float32. Building it touches every cell
+    of the map, so it is cached per (distance array, parameters) when the field's
+    distance array is read-only (:mod:`robolab.tablecache`; :func:`likelihood_field`
+    returns it so): then a step costs in proportion to particles x beams only.
+    """
     if not isinstance(field, dict):
         raise TypeError(f"field must be the dict from likelihood_field, got {type(field).__name__}")
     missing = [
@@ -784,12 +795,33 @@ def _field_arrays(field):
     ]
     if missing:
         raise ValueError(f"field is missing key(s) {missing}")
-    dist = as_array("field['distance']", field["distance"], ndim=2, finite=True, nonnegative=True)
-    sigma = check_positive("field['sigma_hit']", field["sigma_hit"])
+    sigma = _sigma_hit("field['sigma_hit']", field["sigma_hit"])
     dmax = check_positive("field['max_dist']", field["max_dist"])
     # an empty grid with the field's geometry: robolab.maps does every cell <-> world conversion
     geometry = OccupancyGrid(np.zeros((1, 1)), field["resolution"], field["origin"])
-    return dist, sigma, dmax, geometry
+    source = field["distance"]
+
+    def build():
+        dist = as_array("field['distance']", source, ndim=2, finite=True, nonnegative=True)
+        padded = np.pad(dist, 1, constant_values=dmax)
+        if z_rand > 0:  # log(z_hit N(d) + z_rand / z_max), never log(0)
+            table = np.log(z_hit * _gaussian(padded, sigma) + z_rand / rmax)
+        else:
+            table = (math.log(z_hit) if z_hit > 0 else -np.inf) + _log_gaussian(padded, sigma)
+        return table.astype(np.float32)  # half the memory for the random-access gather
+
+    key = ("likelihood_field_model", sigma, dmax, z_hit, z_rand, rmax)
+    if not isinstance(source, np.ndarray):
+        return build(), geometry
+    return cached_table(source, key, build), geometry
+
+
+def _sigma_hit(name, value) -> float:
+    """A positive sigma whose Gaussian peak ``1 / (sqrt(2 pi) sigma)`` is a float64."""
+    sigma = check_positive(name, value)
+    if _log_gaussian(0.0, sigma) > LOG_FLOAT_MAX:
+        raise ValueError(f"{name}={sigma!r} is too small: the Gaussian's peak overflows float64")
+    return sigma
 
 
 def _log_gaussian(d, sigma):

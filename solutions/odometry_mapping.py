@@ -53,17 +53,20 @@ __all__ = [
 
 #: Default parameters of the inverse range sensor model (Table 9.2): log-odds of
 #: an occupied (p = 0.7) and a free (p = 0.35) cell, the prior l_0 (p = 0.5),
-#: the obstacle thickness alpha (metres, two cells of 0.05 m) and the beam width
+#: the obstacle thickness in cells (``alpha_cells``: two cells, whatever the map's
+#: resolution; ``alpha`` in metres may be given instead) and the beam width
 #: beta (radians, two degrees: twice the bundled laser's angular increment).
 INVERSE_SENSOR_MODEL = {
     "l_occ": float(np.log(0.7 / 0.3)),
     "l_free": float(np.log(0.35 / 0.65)),
     "l_0": 0.0,
-    "alpha": 0.1,
+    "alpha_cells": 2.0,
     "beta": float(np.deg2rad(2.0)),
 }
 
 _SCAN_KEYS = ("ranges", "angles", "range_min", "range_max")
+#: Most cells :func:`beam_cells` returns in one call (two int64 each: 256 MiB).
+MAX_BEAM_CELLS = 2**24
 
 
 def _scan_arrays(scan):
@@ -104,9 +107,21 @@ def _check_grid(grid):
     return grid
 
 
-def _layer(name, value, grid):
-    """A float copy of a per-cell array of the grid's shape, finite."""
-    return as_array(name, value, shape=grid.shape, finite=True).copy()
+def _layer(name, value, grid, counts=False):
+    """A float copy of a per-cell array of the grid's shape, checked finite (and >= 0 for counts).
+
+    Besides the copy (the updates return new arrays), the check is two reductions
+    -- min and max propagate NaN and are infinite exactly when an entry is -- and
+    no per-cell temporaries, so an update's other work scales with the beams.
+    """
+    out = np.array(as_array(name, value, shape=grid.shape), dtype=float, copy=True)
+    if out.size:
+        lo, hi = out.min(), out.max()
+        if not (np.isfinite(lo) and np.isfinite(hi)):
+            raise ValueError(f"{name} must be finite (no NaN or inf)")
+        if counts and lo < 0:
+            raise ValueError("hits and visits must be non-negative counts")
+    return out
 
 
 def scan_endpoints(scan, pose, laser_offset):
@@ -197,7 +212,8 @@ def beam_cells(start_cell, end_cell):
     Raises
     ------
     ValueError
-        Shapes other than (2,) / (B, 2), mismatched B, non-finite coordinates.
+        Shapes other than (2,) / (B, 2), mismatched B, non-finite coordinates,
+        or beams that would cross more than :data:`MAX_BEAM_CELLS` cells in all.
     """
     s = as_array("start_cell", start_cell, ndim=(1, 2), finite=True)
     e = as_array("end_cell", end_cell, ndim=(1, 2), finite=True)
@@ -209,6 +225,13 @@ def beam_cells(start_cell, end_cell):
     if s.shape[0] != e.shape[0] and 1 not in (s.shape[0], e.shape[0]):
         raise ValueError(f"start_cell has {s.shape[0]} beams but end_cell has {e.shape[0]}")
     s, e = np.broadcast_arrays(s, e)
+    # The beams touch at most |d row| + |d col| + 1 cells each: refuse before allocating.
+    n_cells = float(np.sum(np.abs(np.floor(e) - np.floor(s)).sum(axis=1) + 1.0))
+    if n_cells > MAX_BEAM_CELLS:
+        raise ValueError(
+            f"start_cell and end_cell: these beams cross up to {n_cells:.3g} cells, more than "
+            f"MAX_BEAM_CELLS = {MAX_BEAM_CELLS}; clip the beams to the map first"
+        )
     sr, sc, er, ec = s[:, 0], s[:, 1], e[:, 0], e[:, 1]
     dr, dc = er - sr, ec - sc
     n_beams = s.shape[0]
@@ -311,10 +334,8 @@ def counting_map_update(hits, visits, scan, pose, grid):
         cell by cell whenever it held before.
     """
     grid = _check_grid(grid)
-    hits = _layer("hits", hits, grid)
-    visits = _layer("visits", visits, grid)
-    if np.any(hits < 0) or np.any(visits < 0):
-        raise ValueError("hits and visits must be non-negative counts")
+    hits = _layer("hits", hits, grid, counts=True)
+    visits = _layer("visits", visits, grid, counts=True)
     ranges, angles, rmin, rmax = _scan_arrays(scan)
     laser = _pose("pose", pose)
     ends, is_hit = _beam_ends(ranges, angles, rmin, rmax, laser)
@@ -322,13 +343,13 @@ def counting_map_update(hits, visits, scan, pose, grid):
         return hits, visits
     start = grid.world_to_map(laser[:2])[::-1]
     cells, beam = beam_cells(start, grid.world_to_map(ends)[:, ::-1])
+    # Counts are added on the crossed cells only (np.add.at sums repeated cells), so an
+    # update costs in proportion to the beams' cells, not to the map (beyond the copy).
     inside = grid.contains_cell(cells)
-    flat = np.ravel_multi_index((cells[inside, 0], cells[inside, 1]), grid.shape)
-    visits += np.bincount(flat, minlength=visits.size).reshape(grid.shape)
+    np.add.at(visits, (cells[inside, 0], cells[inside, 1]), 1.0)
     end_cells = grid.world_to_cell(ends[is_hit])  # the last cell of each hit beam
     ok = grid.contains_cell(end_cells)
-    flat = np.ravel_multi_index((end_cells[ok, 0], end_cells[ok, 1]), grid.shape)
-    hits += np.bincount(flat, minlength=hits.size).reshape(grid.shape)
+    np.add.at(hits, (end_cells[ok, 0], end_cells[ok, 1]), 1.0)
     return hits, visits
 
 
@@ -394,12 +415,21 @@ def clip_map(occupancy, threshold=0.5):
     return np.where(known, (m >= tau).astype(float), UNKNOWN)
 
 
-def _sensor_model_params(params):
+def _sensor_model_params(params, resolution):
+    """Checked parameters; ``alpha`` in metres (from ``alpha`` or ``alpha_cells * resolution``)."""
     if not isinstance(params, Mapping):
         raise TypeError(
             f"inverse_sensor_model_params must be a dict with l_occ, l_free, l_0, alpha, beta, "
             f"got {type(params).__name__}"
         )
+    if "alpha" in params and "alpha_cells" in params:
+        raise ValueError(
+            "inverse_sensor_model_params has both alpha (metres) and alpha_cells (cells): "
+            "give one obstacle thickness"
+        )
+    if "alpha_cells" in params:
+        cells = check_positive("inverse_sensor_model_params['alpha_cells']", params["alpha_cells"])
+        params = {**params, "alpha": cells * resolution}
     keys = ("l_occ", "l_free", "l_0", "alpha", "beta")
     missing = [k for k in keys if k not in params]
     if missing:
@@ -459,8 +489,9 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
         The map's geometry.
     inverse_sensor_model_params : dict
         ``l_occ``, ``l_free``, ``l_0`` (log-odds), ``alpha`` (obstacle thickness,
-        metres, > 0), ``beta`` (beam width, radians, > 0); see
-        :data:`INVERSE_SENSOR_MODEL`.
+        metres, > 0) **or** ``alpha_cells`` (the thickness in cells of ``grid``,
+        > 0: the same wall thickness in cells on a 2 cm and a 5 cm map),
+        ``beta`` (beam width, radians, > 0); see :data:`INVERSE_SENSOR_MODEL`.
 
     Returns
     -------
@@ -471,7 +502,7 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     out = _layer("logodds", logodds, grid)
     ranges, angles, rmin, rmax = _scan_arrays(scan)
     laser = _pose("pose", pose)
-    p = _sensor_model_params(inverse_sensor_model_params)
+    p = _sensor_model_params(inverse_sensor_model_params, grid.resolution)
     hit, no_return = _beam_kinds(ranges, rmin, rmax)
     used = hit | no_return
     if not np.any(used):
@@ -534,6 +565,12 @@ def logodds_to_probability(logodds):
     -------
     numpy.ndarray of float, same shape
         Probabilities in [0, 1]; 0.5 where the log-odds are 0.
+
+    Notes
+    -----
+    A cell no beam reached keeps the prior (0 here, p = 0.5), and an
+    :class:`~robolab.maps.OccupancyGrid` counts ``p >= 0.5`` as occupied: to make a
+    map, use :func:`robolab.maps.from_logodds`, which marks such cells unknown.
     """
     l = as_array("logodds", logodds)  # noqa: E741
     if np.any(np.isnan(l)):

@@ -317,3 +317,19 @@ def test_functions_compose_on_one_axes_and_never_show(monkeypatch):
 def test_ax_must_be_axes():
     with pytest.raises(TypeError, match="ax"):
         plotting.plot_landmarks(np.zeros((1, 2)), ax="not axes")
+
+
+def test_convergence_time_is_the_start_of_the_last_run_below_tolerance():
+    """Lock-on time: the first update after which the error never again reaches the tolerance."""
+    from robolab.plotting.mcl import convergence_time
+
+    t = np.arange(8.0)
+    run = {"t": t, "position_error": np.array([3.0, 0.2, 0.1, 2.0, 0.4, 0.3, 0.2, 0.1])}
+    assert convergence_time(run, 0.5) == 4.0
+    assert convergence_time(run, 5.0) == 0.0
+    still_off = {"t": t, "position_error": np.r_[np.zeros(7), 1.0]}
+    assert convergence_time(still_off, 0.5) is None
+    with_nan = {"t": t, "position_error": np.r_[0.1, np.nan, np.zeros(6)]}
+    assert convergence_time(with_nan, 0.5) == 2.0  # a NaN error is not "locked on"
+    with pytest.raises(ValueError):
+        convergence_time(run, 0.0)

@@ -1,12 +1,31 @@
-"""Tests of robolab.raycast: analytic cases, a brute-force oracle, the lab API, bad input."""
+"""Tests of robolab.raycast: analytic cases, a brute-force oracle, the lab API, bad input.
+
+Every test runs once per backend (the compiled numba kernel and the numpy
+fallback), through the ``backend`` fixture.
+"""
 
 from __future__ import annotations
+
+import weakref
 
 import numpy as np
 import pytest
 
+from robolab import raycast
 from robolab.maps import UNKNOWN, OccupancyGrid, load_map
 from robolab.raycast import RayCaster, cast_rays, castrays, castraysingle
+
+
+@pytest.fixture(autouse=True, params=raycast.BACKENDS)
+def backend(request, monkeypatch):
+    """Run the test with casters of one backend (a fresh cache: no caster of the other leaks in)."""
+    if request.param == "numba" and raycast._jit() is None:
+        pytest.skip("numba is not installed")
+    monkeypatch.setattr(raycast, "default_backend", lambda: request.param)
+    monkeypatch.setattr(raycast, "_CACHE", weakref.WeakKeyDictionary())
+    monkeypatch.setenv("ROBOLAB_RAYCAST", request.param)  # for the subprocess tests
+    return request.param
+
 
 RIGHT, UP, LEFT, DOWN = 0.0, np.pi / 2, np.pi, -np.pi / 2
 FOUR = [RIGHT, UP, LEFT, DOWN]
@@ -330,8 +349,9 @@ def test_distance_field_is_cached_per_grid():
     assert _caster_for(g.with_data(g.data)) is not _caster_for(g)
 
 
-def _cast_in_subprocess(code: str, timeout: float = 30.0) -> str:
-    # A hang must fail the test, not block the suite: run it in a child with a timeout.
+def _cast_in_subprocess(code: str, timeout: float = 60.0) -> str:
+    # A hang must fail the test, not block the suite: run it in a child with a timeout
+    # (ROBOLAB_RAYCAST, set by the backend fixture, picks the child's backend).
     import subprocess
     import sys
 
@@ -438,3 +458,141 @@ def test_long_jumps_on_a_box_map_match_the_exact_traversal():
     got = cast_rays(g, poses, angles, 250.0)
     want = np.array([[_exact_ray(occ, u, v, th + a, 250.0) for a in angles] for u, v, th in poses])
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+
+
+# -- the two backends, the compiled fields, huge ranges -----------------------------------------
+def test_caster_reports_its_backend(backend):
+    g = OccupancyGrid(box(), 1.0)
+    assert raycast._caster_for(g).backend == backend
+    assert RayCaster(g, backend="numpy").backend == "numpy"
+    with pytest.raises(ValueError, match="backend"):
+        RayCaster(g, backend="cuda")
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_backends_agree(seed, backend):
+    # Cluttered maps with unknown cells, rotated origin, poses in and around the map,
+    # plus axis-parallel and diagonal beams: the compiled and numpy paths give the same
+    # ranges (they differ only in float round-off).
+    if raycast._jit() is None:
+        pytest.skip("numba is not installed")
+    rng = np.random.default_rng(100 + seed)
+    h, w = rng.integers(20, 120, size=2)
+    data = (rng.random((h, w)) < rng.uniform(0.01, 0.3)).astype(float)
+    data[rng.random((h, w)) < 0.1] = UNKNOWN
+    g = OccupancyGrid(data, 0.1, origin=[1.0, -2.0, rng.uniform(-np.pi, np.pi)])
+    cells = np.stack([rng.uniform(-5, h + 5, 200), rng.uniform(-5, w + 5, 200)], -1)
+    poses = np.column_stack([g.cell_to_world(cells - 0.5), rng.uniform(-np.pi, np.pi, 200)])
+    angles = np.concatenate([rng.uniform(-np.pi, np.pi, 30), np.arange(8) * np.pi / 4])
+    a = RayCaster(g, backend="numba").cast(poses, angles, 8.0)
+    b = RayCaster(g, backend="numpy").cast(poses, angles, 8.0)
+    np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_chessboard_quadrant_fields_match_brute_force(seed):
+    if raycast._jit() is None:
+        pytest.skip("numba is not installed")
+    from robolab._raycast_jit import DECODE, FIELD_MAX, quadrant_fields
+
+    rng = np.random.default_rng(seed)
+    # sparse enough for distances past the exact one-byte range (127 cells)
+    shape = (17, 29) if seed else (160, 300)
+    occ = rng.random(shape) < (rng.uniform(0.01, 0.15) if seed else 2e-4)
+    fields = quadrant_fields(occ)
+    assert fields.shape == (4, *occ.shape) and fields.dtype == np.uint8
+    rr, cc = np.nonzero(occ)
+    step = int(np.diff(DECODE[-2:])[0])
+    for q, (sx, sy) in enumerate([(1, 1), (-1, 1), (1, -1), (-1, -1)]):
+        for r in range(0, occ.shape[0], 1 if seed else 7):
+            for c in range(0, occ.shape[1], 1 if seed else 5):
+                di, dj = sy * (rr - r), sx * (cc - c)
+                ahead = (di >= 0) & (dj >= 0)
+                # the outside of the map counts as free
+                d = np.maximum(di[ahead], dj[ahead]).min() if ahead.any() else np.inf
+                got = DECODE[fields[q, r, c]]
+                assert (got == 0) == bool(occ[r, c]), (q, r, c)
+                # a lower bound (never a jump past an obstacle), exact below 128 cells
+                # and within one code step of it up to FIELD_MAX
+                assert got <= d, (q, r, c)
+                assert got == d if d < 128 else got > min(d, FIELD_MAX) - step, (q, r, c)
+
+
+def test_huge_max_range_is_returned_not_inf():
+    # max_range / resolution overflows to inf for 1e308 m: rays that leave the map must
+    # still return max_range, and hits their exact range.
+    g = OccupancyGrid(box(), 0.5)
+    angles = np.linspace(-np.pi, np.pi, 17)
+    huge = cast_rays(g, [2.2, 2.6, 0.1], angles, 1e308)
+    ref = cast_rays(g, [2.2, 2.6, 0.1], angles, 1e6)
+    np.testing.assert_array_equal(huge, ref)  # a closed box: every beam hits
+    out = cast_rays(OccupancyGrid(np.zeros((4, 4)), 0.5), [1.0, 1.0, 0.0], angles, 1e308)
+    np.testing.assert_array_equal(out, 1e308)
+
+
+def test_environment_selects_the_backend():
+    code = "from robolab import raycast\nprint(raycast.default_backend())\n"
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "ROBOLAB_RAYCAST": "numpy"}
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert run.returncode == 0 and run.stdout.strip() == "numpy", run.stderr
+    env["ROBOLAB_RAYCAST"] = "gpu"
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert run.returncode != 0 and "ROBOLAB_RAYCAST" in run.stderr
+
+
+def test_without_numba_the_numpy_fallback_is_used():
+    # numba made unimportable in a child: cast_rays still works, on the numpy path.
+    code = (
+        "import sys, warnings\n"
+        "sys.modules['numba'] = None\n"
+        "import numpy as np\n"
+        "from robolab import raycast\n"
+        "from robolab.maps import OccupancyGrid\n"
+        "with warnings.catch_warnings(record=True) as caught:\n"
+        "    warnings.simplefilter('always')\n"
+        "    r = raycast.cast_rays(OccupancyGrid(np.eye(5), 1.0), [0.5, 3.5, 0.0], [0.0], 9.0)\n"
+        "print(raycast._caster_for(OccupancyGrid(np.eye(5), 1.0)).backend, float(r[0, 0]),"
+        " any('numpy fallback' in str(w.message) for w in caught))\n"
+    )
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "ROBOLAB_RAYCAST"}
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["numpy", "2.5", "True"]
+
+
+def test_reference_casts_are_the_numpy_backend_bit_for_bit():
+    # robolab data generates files with cast_rays_reference: it must not depend on numba.
+    rng = np.random.default_rng(9)
+    g = OccupancyGrid((rng.random((30, 40)) < 0.1).astype(float), 0.1, origin=[0.3, -0.2, 0.4])
+    poses = np.column_stack([rng.uniform(0, 3, (50, 2)), rng.uniform(-np.pi, np.pi, 50)])
+    angles = np.linspace(-np.pi, np.pi, 19)
+    ref = raycast.cast_rays_reference(g, poses, angles, 2.5)
+    assert raycast._caster_for(g, reference=True).backend == "numpy"
+    np.testing.assert_array_equal(ref, RayCaster(g, backend="numpy").cast(poses, angles, 2.5))
+    np.testing.assert_allclose(ref, cast_rays(g, poses, angles, 2.5), rtol=0, atol=1e-9)
+
+
+def test_long_rays_on_a_sparse_map_match_the_exact_traversal():
+    # Jumps of hundreds of cells (past the one-byte codes' exact range of 127 cells and
+    # across their 32-cell rounding) must still stop at the first obstacle entered.
+    rng = np.random.default_rng(12)
+    occ = np.zeros((640, 700), dtype=bool)
+    occ[rng.integers(0, 640, 120), rng.integers(0, 700, 120)] = True  # scattered cells
+    occ[300:303, 100:600] = True  # a long thin wall
+    g = OccupancyGrid(occ.astype(float), 1.0)
+    free = np.argwhere(~occ)[rng.integers(int((~occ).sum()), size=20)]
+    uv = free[:, ::-1] + rng.uniform(0, 1, (20, 2))
+    poses = np.column_stack([uv, rng.uniform(-np.pi, np.pi, 20)])
+    angles = np.concatenate([rng.uniform(-np.pi, np.pi, 8), [0.0, np.pi / 2, np.pi, -np.pi / 2]])
+    got = cast_rays(g, poses, angles, 900.0)
+    want = np.array([[_exact_ray(occ, u, v, th + a, 900.0) for a in angles] for u, v, th in poses])
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
+    assert np.any((want > 200) & (want < 900))  # long hits were exercised

@@ -60,3 +60,21 @@ def expect_shape(what: str, got, shape) -> np.ndarray:
     if g.shape != tuple(shape):
         raise CheckFailed(f"{what}: expected shape {tuple(shape)}, got {g.shape}")
     return g
+
+
+def expect_raises(what: str, error: type[BaseException], func, *args, **kwargs) -> None:
+    """Raise CheckFailed unless ``func(*args, **kwargs)`` raises ``error`` (bad input refused).
+
+    NotImplementedError is let through, so the check says "not implemented yet".
+    """
+    try:
+        func(*args, **kwargs)
+    except NotImplementedError:
+        raise
+    except error:
+        return
+    except Exception as exc:  # noqa: BLE001 - any other error is the wrong kind of refusal
+        raise CheckFailed(
+            f"{what}: expected {error.__name__}, got {type(exc).__name__}: {exc}"
+        ) from None
+    raise CheckFailed(f"{what}: expected {error.__name__}, but the function returned normally")

@@ -6,16 +6,18 @@ tests check much more (the book's whole door example, bad input, invariants).
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 
-from robolab.checks.base import CheckFailed, check, expect_close, expect_shape
+from robolab.checks.base import CheckFailed, check, expect_close, expect_raises, expect_shape
 
 __all__ = ["check_bayes_posterior", "check_door_open_posterior", "check_bayes_filter_step"]
 
 
 @check
 def check_bayes_posterior(bayes_posterior):
-    """The seed's door numbers as vectors over (open, closed); a 3-state posterior sums to 1."""
+    """The door numbers as vectors over (open, closed); a 3-state posterior sums to 1."""
     post = bayes_posterior(np.array([2 / 3, 1 / 3]), np.array([3 / 5, 2 / 5]))
     expect_shape("bayes_posterior(likelihood (2,), prior (2,))", post, (2,))
     expect_close("posterior for likelihood [2/3, 1/3] and prior [3/5, 2/5]", post, [0.75, 0.25])
@@ -32,11 +34,18 @@ def check_bayes_posterior(bayes_posterior):
         post3,
         [0.1 / 0.425, 0.225 / 0.425, 0.1 / 0.425],
     )
+    expect_raises(
+        "bayes_posterior with likelihood [0, 1] and prior [1, 0] (p(z) = 0)",
+        ValueError,
+        bayes_posterior,
+        np.array([0.0, 1.0]),
+        np.array([1.0, 0.0]),
+    )
 
 
 @check
 def check_door_open_posterior(door_open_posterior):
-    """The seed's worked problem: p(z|open) = 2/3, p(z|closed) = 1/3, p(open) = 3/5 gives 3/4."""
+    """The door problem: p(z|open) = 2/3, p(z|closed) = 1/3, p(open) = 3/5 gives exactly 3/4."""
     p = door_open_posterior(2 / 3, 1 / 3, 3 / 5)
     if np.ndim(p) != 0:
         raise CheckFailed(f"expected a single number, got shape {np.shape(p)}")
@@ -46,6 +55,16 @@ def check_door_open_posterior(door_open_posterior):
         door_open_posterior(0.5, 0.5, 0.3),
         0.3,
         atol=1e-12,
+    )
+    exact = door_open_posterior(Fraction(2, 3), Fraction(1, 3), Fraction(3, 5))
+    if not isinstance(exact, Fraction) or exact != Fraction(3, 4):
+        raise CheckFailed(
+            f"door_open_posterior(Fraction(2, 3), Fraction(1, 3), Fraction(3, 5)): expected "
+            f"exactly Fraction(3, 4), got {type(exact).__name__} {exact!r}: use plain arithmetic "
+            "(*, +, -, /) so that fractions stay exact"
+        )
+    expect_raises(
+        "door_open_posterior(0, 0.2, 1) (p(z) = 0)", ValueError, door_open_posterior, 0.0, 0.2, 1.0
     )
 
 
@@ -62,3 +81,11 @@ def check_bayes_filter_step(bayes_filter_step):
     push = np.array([[1.0, 0.8], [0.0, 0.2]])  # push[next, previous]
     bel = bayes_filter_step(np.array([0.0, 1.0]), push, np.ones(2))
     expect_close("a closed door pushed (no measurement information): 0.8 open", bel, [0.8, 0.2])
+    expect_raises(
+        "bayes_filter_step with the transposed push model (rows, not columns, sum to 1)",
+        ValueError,
+        bayes_filter_step,
+        np.array([0.5, 0.5]),
+        push.T,
+        np.ones(2),
+    )

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from robolab.checks.base import CheckFailed, check, expect_close, expect_shape
+from robolab.checks.base import CheckFailed, check, expect_close, expect_raises, expect_shape
 
 __all__ = [
     "check_p_hit",
@@ -157,6 +157,22 @@ def check_beam_range_finder_model(beam_range_finder_model):
             "log=True gave -inf for 2000 beams: sum the logs of the beams, "
             "do not take the log of the (underflowed) product"
         )
+    expect_raises(
+        "beam_range_finder_model with a reading of 6 m beyond max_range = 5 m",
+        ValueError,
+        beam_range_finder_model,
+        np.array([1.0, 6.0]),
+        np.array([1.0, 2.0]),
+        prm,
+    )
+    expect_raises(
+        "beam_range_finder_model with weights summing to 1.2",
+        ValueError,
+        beam_range_finder_model,
+        np.array([1.0]),
+        np.array([1.0]),
+        dict(prm, z_hit=prm["z_hit"] + 0.2),
+    )
 
 
 @check

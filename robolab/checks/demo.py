@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from robolab.checks.base import CheckFailed, check, expect_close, expect_shape
+from robolab.checks.base import CheckFailed, check, expect_close, expect_raises, expect_shape
 
 
 @check
 def check_normalize(normalize) -> None:
     """``normalize([1, 3])`` is ``[0.25, 0.75]``."""
     expect_close("normalize([1, 3])", normalize(np.array([1.0, 3.0])), [0.25, 0.75])
+    expect_raises("normalize([1, -1, 2])", ValueError, normalize, np.array([1.0, -1.0, 2.0]))
 
 
 @check

@@ -1,4 +1,4 @@
-"""Visible checks for lab 06, EKF localization with grid mapping (seed 000).
+"""Visible checks for lab 06, EKF localization with grid mapping.
 
 Quick and friendly: shapes, one worked example and one invariant per exercise.
 The hidden tests are stronger (finite differences at random states, a

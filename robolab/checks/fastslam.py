@@ -1,4 +1,4 @@
-"""Visible checks for lab 07, FastSLAM 1.0 with known correspondences (seed 003).
+"""Visible checks for lab 07, FastSLAM 1.0 with known correspondences.
 
 Quick, friendly and weaker than the hidden tests: shapes, one worked example
 and one invariant per exercise.
@@ -34,14 +34,14 @@ def _keys(what, state):
 
 @check
 def check_init_particles(init_particles) -> None:
-    """3 particles, 2 landmarks: shapes, the seed's prior; first-observation init sees nothing."""
+    """3 particles, 2 landmarks: shapes, the vague prior; first-observation init sees nothing."""
     s = init_particles(3, 2, [-2.5, -2.0, 0.25], init="prior")
     _keys("init_particles(3, 2, x0)", s)
     poses = expect_shape("poses", s["poses"], (3, 3))
     expect_close("every particle's pose", poses, np.tile([-2.5, -2.0, 0.25], (3, 1)))
-    expect_close("means (the seed's mu0 = 0)", s["means"], np.zeros((3, 2, 2)))
+    expect_close("means (the vague prior's mu0 = 0)", s["means"], np.zeros((3, 2, 2)))
     expect_close(
-        "covs (the seed's Sigma0 = 10000 I)",
+        "covs (the vague prior's Sigma0 = 10000 I)",
         s["covs"],
         np.broadcast_to(1e4 * np.eye(2), (3, 2, 2, 2)),
     )

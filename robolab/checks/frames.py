@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from robolab.checks.base import CheckFailed, check, expect_close, expect_shape
+from robolab.checks.base import CheckFailed, check, expect_close, expect_raises, expect_shape
 
 __all__ = ["check_scan_to_cartesian", "check_transform_points", "check_pose_at"]
 
@@ -34,6 +34,21 @@ def check_scan_to_cartesian(scan_to_cartesian):
             f"{pts.shape}: inf, 0 and NaN mean 'no return' and must be dropped"
         )
     expect_close("the one valid beam of [inf, 0, nan, 1.5] at angle 0", pts, [[1.5, 0.0]])
+    pts = np.asarray(scan_to_cartesian(np.array([2.0, 10.0]), np.zeros(2), 0.1, 10.0), dtype=float)
+    if pts.shape != (1, 2):
+        raise CheckFailed(
+            f"ranges [2, 10] with range_max 10: expected one return, shape (1, 2), got "
+            f"{pts.shape}: a reading of exactly range_max is a max-range reading, not a return"
+        )
+    expect_raises(
+        "scan_to_cartesian with 3 ranges but 2 angles",
+        ValueError,
+        scan_to_cartesian,
+        np.ones(3),
+        np.zeros(2),
+        0.1,
+        10.0,
+    )
 
 
 @check
@@ -50,6 +65,18 @@ def check_transform_points(transform_points):
     )
     expect_close(
         "the identity pose (0, 0, 0) changes nothing", transform_points(pts, np.zeros(3)), pts
+    )
+    expect_shape(
+        "transform_points(points (2, 2), poses (4, 3))",
+        transform_points(pts, np.zeros((4, 3))),
+        (4, 2, 2),
+    )
+    expect_raises(
+        "transform_points with points of shape (2, 3)",
+        ValueError,
+        transform_points,
+        np.ones((2, 3)),
+        np.zeros(3),
     )
 
 
@@ -70,3 +97,11 @@ def check_pose_at(pose_at):
         )
     out = np.asarray(pose_at(stamps, np.zeros((2, 3)), np.array([0.0, 0.3, 1.0])), dtype=float)
     expect_shape("pose_at with 3 times t", out, (3, 3))
+    expect_raises(
+        "pose_at at t = 2 after the last stamp 1 (no extrapolation)",
+        ValueError,
+        pose_at,
+        stamps,
+        np.zeros((2, 3)),
+        2.0,
+    )

@@ -130,3 +130,14 @@ def check_particle_filter(particle_filter):
         truth,
         atol=1e-6,
     )
+    lost = z.copy()
+    lost[0] = 1e4  # ranges of 10 km: every weight of step 1 is 0
+    path = np.asarray(
+        particle_filter(_LANDMARKS, controls, lost, 100, noise, np.random.default_rng(0)),
+        dtype=float,
+    )
+    if path.shape != (3, 2) or not np.all(np.isfinite(path)):
+        raise CheckFailed(
+            "a step whose every weight is 0 (ranges of 10 km): expected a finite (3, 2) path, "
+            f"got {path}: keep the predicted particles for that step (uniform weights)"
+        )

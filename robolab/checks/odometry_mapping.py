@@ -111,7 +111,7 @@ def check_occupancy_from_counts(occupancy_from_counts):
 
 @check
 def check_clip_map(clip_map):
-    """The seed's clipping at 0.5: unknown stays unknown."""
+    """Clipping at 0.5: unknown stays unknown."""
     got = clip_map(np.array([-1.0, 0.1, 0.5, 0.9]))
     expect_close("clip_map([-1, 0.1, 0.5, 0.9])", got, [-1.0, 0.0, 1.0, 1.0])
 

@@ -11,13 +11,16 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import inspect
+import os
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 
 from robolab.grading.labs import LabError, find_lab
 
-__all__ = ["check", "grade", "gradescope", "release", "solve"]
+__all__ = ["check", "data", "grade", "gradescope", "release", "solve"]
 
 #: Exit code when a command could not do its job (as opposed to a low score).
 FAILED = 2
@@ -28,6 +31,35 @@ def _error(message: str) -> int:
     return FAILED
 
 
+def _course_inputs(
+    roster: Path | None,
+    overrides: Path | None,
+    due: str | None,
+    penalty: float,
+    cap: float,
+    times: Path | None,
+    exports: Sequence[str],
+):
+    """Read every course file before grading, so a typo costs nothing."""
+    from robolab.grading.late import LatePolicy, parse_time, read_times
+    from robolab.grading.overrides import read_overrides
+    from robolab.grading.roster import read_roster
+
+    if exports and roster is None:
+        raise ValueError(f"--export {exports[0]} needs --roster (who the students are)")
+    if (times is not None or penalty or cap != 100) and due is None:
+        raise ValueError("--late-penalty, --late-cap and --submitted-times need --due")
+    students = read_roster(roster) if roster is not None else None
+    manual = read_overrides(overrides) if overrides is not None else None
+    policy = (
+        LatePolicy(parse_time(due, "--due"), penalty_per_day=penalty, cap=cap)
+        if due is not None
+        else None
+    )
+    stamps = read_times(times) if times is not None else None
+    return students, manual, policy, stamps
+
+
 def grade(
     submissions: Sequence[Path],
     *,
@@ -36,53 +68,140 @@ def grade(
     jobs: int = 1,
     timeout: float | None = None,
     progress: bool = True,
+    roster: Path | None = None,
+    overrides: Path | None = None,
+    exports: Sequence[str] = (),
+    assignment: str | None = None,
+    due: str | None = None,
+    late_penalty: float = 0.0,
+    late_cap: float = 100.0,
+    submitted_times: Path | None = None,
 ) -> int:
     """Grade notebooks into ``out`` (gradebook.csv, gradebook.json, feedback/) and print a summary.
 
     Exit 0 whenever grading ran, whatever the scores; 2 when it could not
-    (unknown lab, pytest missing, hidden tests that do not run).
+    (a user error, unknown lab, pytest missing, hidden tests that do not run);
+    130 when interrupted (what finished is saved; the same command resumes).
     """
-    from robolab.grading.report import summary_table, write_feedback, write_gradebook
-    from robolab.grading.runner import DEFAULT_TIMEOUT, grade_all
+    from robolab.grading.batch import BatchState, prepare_out
+    from robolab.grading.course import Course
+    from robolab.grading.labs import project_root
+    from robolab.grading.runner import DEFAULT_TIMEOUT, BatchInterrupted, grade_all
 
+    timeout = DEFAULT_TIMEOUT if timeout is None else timeout
     if importlib.util.find_spec("pytest") is None:
         return _error("pytest is not installed in this environment; it runs the hidden tests")
     if not submissions:
         return _error("no submissions given")
-    if lab is not None:
-        try:
-            find_lab(lab)
-        except LabError as exc:
-            return _error(str(exc))
+    if not timeout > 0 or timeout == float("inf"):
+        return _error(f"--timeout must be a positive number of seconds, got {timeout:g}")
+    if jobs < 1:
+        return _error(f"--jobs must be at least 1, got {jobs}")
+    missing = [p for p in submissions if not Path(p).is_file()]
+    if missing:
+        return _error(f"no such notebook: {_shown(missing[0])}")
+    root = project_root()
     try:
-        results = grade_all(
-            list(submissions),
-            lab=lab,
-            jobs=jobs,
-            timeout=timeout or DEFAULT_TIMEOUT,
-            progress=progress,
+        if lab is not None:
+            find_lab(lab)
+        inputs = _course_inputs(
+            roster, overrides, due, late_penalty, late_cap, submitted_times, exports
         )
-    except ValueError as exc:
+        out = prepare_out(out)
+        state = BatchState.load(out)
+        course = Course(out, state, *inputs, exports=exports, assignment=assignment)
+        if inputs[1] is not None:
+            course.keep_overrides(Path(overrides))
+    except (LabError, ValueError) as exc:
         return _error(str(exc))
-    csv_path, json_path = write_gradebook(results, out)
-    write_feedback(results, out)
-    print(summary_table(results))
-    print(f"\ngradebook: {csv_path} and {json_path}; feedback: {out / 'feedback'}/")
-    fatal = [r for r in results if r.fatal]
+    planned = state.plan(list(submissions), lab, root, timeout)
+    todo = [item for item in planned if item.previous is None]
+    for item in planned:
+        if item.previous is not None:
+            state.record(item, item.previous)
+    course.publish()
+
+    def finished(index: int, result) -> None:
+        result.flags = list(todo[index].flags)
+        state.record(todo[index], result)
+        course.publish(result)
+
+    previous_term = _on_sigterm_interrupt()
+    try:
+        grade_all(
+            [item.path for item in todo],
+            labs=[item.lab for item in todo],
+            names=[item.name for item in todo],
+            root=root,
+            jobs=jobs,
+            timeout=timeout,
+            progress=progress,
+            on_result=finished,
+        )
+    except BatchInterrupted as exc:
+        course.publish(final=True)
+        print(
+            f"robolab: interrupted: {exc.done} of {exc.total} submission(s) graded this run; "
+            f"every finished one is saved in {_shown(out)}/ (gradebook.csv is valid). "
+            "Run the same command again to grade the rest: finished submissions are not "
+            "regraded.",
+            file=sys.stderr,
+        )
+        return 130
+    finally:
+        _restore_sigterm(previous_term)
+    written = course.publish(final=True)
+    names = {item.name for item in planned}
+    this_run = [r for r in state.results() if r.name in names]
+    print(course.summary(this_run))
+    print(
+        f"\ngradebook: {_shown(out / 'gradebook.csv')} and {_shown(out / 'gradebook.json')}; "
+        f"feedback: {_shown(out / 'feedback')}/"
+        + "".join(f"; {kind}: {_shown(path)}" for kind, path in written.items())
+    )
+    reused = len(planned) - len(todo)
+    if reused:
+        print(f"{reused} unchanged submission(s) kept from the last run (not regraded)")
+    fatal = [r for r in this_run if r.fatal]
     for r in fatal:
         print(
-            f"robolab: grading could not run for {r.path}: {'; '.join(r.errors)}", file=sys.stderr
+            f"robolab: grading could not run for {_shown(r.path)}: {'; '.join(r.errors)}",
+            file=sys.stderr,
         )
     return FAILED if fatal else 0
+
+
+def _shown(path) -> str:
+    from robolab.grading.batch import display_path
+
+    return display_path(path)
+
+
+def _on_sigterm_interrupt():
+    """Make SIGTERM stop a batch as Ctrl-C does (main thread only); return the old handler."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def interrupt(signum, frame):
+        raise KeyboardInterrupt
+
+    return signal.signal(signal.SIGTERM, interrupt)
+
+
+def _restore_sigterm(previous) -> None:
+    if previous is not None:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def check(notebook: Path) -> int:
     """Run the visible checks of the notebook's lab on the student's own functions.
 
-    The functions are loaded in this process: on a student's machine it is the
-    student's own code, so no isolation is needed (grading isolates, checking
-    does not). Exit 0 when every visible check passed, 1 when one failed, 2
-    when the notebook cannot be checked.
+    The notebook is loaded exactly as ``robolab grade`` loads it (the same
+    cells, run whole and in order, with the same load limit per cell), but in
+    this process: on a student's machine it is the student's own code, so no
+    isolation is needed (grading isolates, checking does not). Exit 0 when
+    every visible check passed, 1 when one failed, 2 when the notebook cannot
+    be checked.
     """
     from robolab.checks.base import CheckFailed
     from robolab.grading.notebook import load_notebook
@@ -95,23 +214,35 @@ def check(notebook: Path) -> int:
         return _error(f"{notebook} does not say which lab it is (no robolab.lab in its metadata)")
     try:
         checks = importlib.import_module(f"robolab.checks.{loaded.lab}")
-    except ModuleNotFoundError:
-        return _error(f"lab {loaded.lab!r} has no visible checks")
-    for p in loaded.problems:
-        print(f"note: cell {p.cell_index} was skipped ({p.kind}): {p.message}")
-    namespace: dict = {"__name__": "__notebook__"}
-    try:
-        exec(compile(loaded.source, str(notebook), "exec"), namespace)  # noqa: S102 - the student's own code
-    except Exception as exc:
-        return _error(f"defining your functions raised {type(exc).__name__}: {exc}")
-    visible = sorted(
-        (
-            f
-            for name, f in inspect.getmembers(checks, inspect.isfunction)
-            if name.startswith("check_") and f.__module__ == checks.__name__
-        ),
-        key=lambda f: inspect.getsourcelines(f)[1],
+    except (ModuleNotFoundError, ValueError):
+        checks = None
+    visible = (
+        []
+        if checks is None
+        else sorted(
+            (
+                f
+                for name, f in inspect.getmembers(checks, inspect.isfunction)
+                if name.startswith("check_") and f.__module__ == checks.__name__
+            ),
+            key=lambda f: inspect.getsourcelines(f)[1],
+        )
     )
+    if not visible:
+        return _error(
+            f"{_shown(notebook)} is of lab {loaded.lab!r}, which has no visible checks "
+            "(is the lab name in the notebook's metadata right?)"
+        )
+    # The same cells, run the same way, as `robolab grade` runs them in its worker.
+    from robolab.grading.kernel import load_budget, new_namespace, run_cells
+    from robolab.grading.proxy import Limits
+
+    namespace = new_namespace("__notebook__")
+    budget = load_budget(Limits().wall_seconds, Limits().cpu_seconds)
+    problems = list(loaded.problems)
+    problems += [loaded.problem(*failed) for failed in run_cells(namespace, loaded.cells, *budget)]
+    for p in sorted(problems, key=lambda p: p.cell_index):
+        print(f"note: {p}")
     failures = 0
     for check_fn in visible:
         exercise = check_fn.__name__.removeprefix("check_")
@@ -135,37 +266,160 @@ def check(notebook: Path) -> int:
     return 0
 
 
-def solve(notebooks: Sequence[Path], *, out: Path) -> int:
-    """Write solved copies of the notebooks (or of every notebook in given folders) to ``out``."""
-    from robolab.grading.solve import SolveError, solve_paths
+def _output_file(path: Path, what: str) -> Path:
+    """Check that ``path`` can be written as a file (its folder is created); return it."""
+    path = Path(path)
+    if path.is_dir():
+        raise ValueError(f"{what} {_shown(path)} is a folder; give a file name")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(
+            f"{what} {_shown(path)}: cannot create its folder ({exc.strerror})"
+        ) from None
+    if not os.access(path.parent, os.W_OK | os.X_OK) or (
+        path.exists() and not os.access(path, os.W_OK)
+    ):
+        raise ValueError(f"{what} {_shown(path)} cannot be written (permission denied)")
+    return path
+
+
+def _output_folder(path: Path, what: str) -> Path:
+    """Check that ``path`` is or can be made a writable folder; return it."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ValueError(f"{what} {_shown(path)} exists and is not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"{what} {_shown(path)} cannot be created ({exc.strerror})") from None
+    if not os.access(path, os.W_OK | os.X_OK):
+        raise ValueError(f"{what} {_shown(path)} cannot be written (permission denied)")
+    return path
+
+
+def _is_stub_notebook(path: Path) -> bool:
+    """Whether ``path`` is a notebook whose exercise cells hold stubs (never overwrite it)."""
+    import ast
+
+    import nbformat
+
+    from robolab.grading.labs import exercise_cells
+    from robolab.grading.release import is_stub
 
     try:
-        written = solve_paths(list(notebooks), out)
-    except (SolveError, LabError) as exc:
+        nb = nbformat.read(str(path), as_version=4)
+        cells = exercise_cells(nb)
+    except Exception:  # not a readable notebook: not a stub either
+        return False
+    return any(is_stub(f) for _, funcs in cells for f in funcs if isinstance(f, ast.FunctionDef))
+
+
+def solve(notebooks: Sequence[Path], *, out: Path) -> int:
+    """Write solved copies of the notebooks (or of every notebook in given folders) to ``out``.
+
+    ``out`` ending in ``.ipynb`` is a file: one notebook is solved into it. Nothing is
+    written over an input, over a stub notebook, or into the project's ``notebooks/``.
+    """
+    out = Path(out)
+    try:  # the output first: it is cheap to check, nbformat is not cheap to import
+        if out.suffix == ".ipynb":
+            _output_file(out, "-o")
+        else:
+            _output_folder(out, "-o")
+    except ValueError as exc:
         return _error(str(exc))
-    print(f"solved {len(written)} notebook(s) into {out}/")
+    import nbformat
+
+    from robolab.grading.batch import atomic_write
+    from robolab.grading.labs import Lab, lab_of_notebook, project_root
+    from robolab.grading.solve import SolveError, _notebooks, solve_notebook, solve_paths
+
+    try:
+        inputs = _notebooks([Path(p) for p in notebooks])
+        if not inputs:
+            raise SolveError("no notebooks found in " + ", ".join(_shown(p) for p in notebooks))
+        single = out.suffix == ".ipynb"
+        targets = [out] if single else [out / p.name for p in inputs]
+        if single and len(inputs) != 1:
+            raise SolveError(f"-o {_shown(out)} is one file but {len(inputs)} notebooks were given")
+        stubs = (project_root() / "notebooks").resolve()
+        for source, target in zip(inputs, targets, strict=True):
+            if target.exists() and target.resolve() == source.resolve():
+                raise SolveError(f"refusing to write the solution over its input {_shown(source)}")
+            if target.resolve().parent == stubs or (target.is_file() and _is_stub_notebook(target)):
+                raise SolveError(f"refusing to write over the stub notebook {_shown(target)}")
+        if single:
+            lab = lab_of_notebook(inputs[0])
+            if lab is None:
+                raise SolveError(f"{_shown(inputs[0])}: no robolab.lab in the notebook's metadata")
+            nb = nbformat.read(str(inputs[0]), as_version=4)
+            atomic_write(out, nbformat.writes(solve_notebook(nb, Lab(lab, project_root()))) + "\n")
+            written = [out]
+        else:
+            written = solve_paths(inputs, out)
+    except (SolveError, LabError, ValueError) as exc:
+        return _error(str(exc))
+    print(f"solved {len(written)} notebook(s) into {_shown(out)}")
     return 0
 
 
-def release(out: Path) -> int:
-    """Build the student edition into ``out``."""
+def release(out: Path, *, wheel: bool = True) -> int:
+    """Build the student edition into ``out`` (and its wheel into ``out/dist``)."""
+    try:
+        _output_folder(out, "release folder")
+    except ValueError as exc:
+        return _error(str(exc))
     from robolab.grading.release import ReleaseError, build_release
 
     try:
-        build_release(out)
-    except (ReleaseError, SyntaxError) as exc:
+        build_release(out, wheel=wheel)
+    except (ReleaseError, SyntaxError, ValueError) as exc:
         return _error(str(exc))
-    print(f"student edition written to {out}/ (no solutions, no hidden tests)")
+    print(f"student edition written to {_shown(out)}/ (no solutions, no hidden tests)")
+    if wheel:
+        print(f"installable wheel: {_shown(next((Path(out) / 'dist').glob('robolab-*.whl')))}")
     return 0
 
 
-def gradescope(lab: str, *, out: Path) -> int:
+def gradescope(
+    lab: str,
+    *,
+    out: Path,
+    visibility: dict[str, str] | None = None,
+    default_visibility: str = "visible",
+    late_penalty: float = 0.0,
+    late_cap: float = 100.0,
+) -> int:
     """Build the Gradescope autograder zip for ``lab``."""
-    from robolab.grading.gradescope import build_bundle
+    from robolab.grading.gradescope import BundleOptions, build_bundle
 
     try:
-        build_bundle(lab, out)
-    except LabError as exc:
+        _output_file(out, "-o")
+        options = BundleOptions(
+            visibility=dict(visibility or {}),
+            default_visibility=default_visibility,
+            late_penalty=late_penalty,
+            late_cap=late_cap,
+        )
+        build_bundle(lab, out, options=options)
+    except (LabError, ValueError) as exc:
         return _error(str(exc))
-    print(f"Gradescope autograder for lab {lab!r}: {out}")
+    print(f"Gradescope autograder for lab {lab!r}: {_shown(out)}")
+    return 0
+
+
+def data(out: Path | None, only: Sequence[str] | None) -> int:
+    """Regenerate the bundled data (``robolab data``)."""
+    try:
+        if out is not None:
+            _output_folder(out, "--out")
+    except ValueError as exc:
+        return _error(str(exc))
+    from robolab.sim import make_data
+
+    try:
+        make_data(out_dir=out, only=only)
+    except ValueError as exc:
+        return _error(str(exc))
     return 0

@@ -38,7 +38,8 @@ from pathlib import Path
 from typing import Any
 
 import robolab
-from robolab.grading import codec, sandbox
+from robolab.grading import codec, observe, processes, sandbox
+from robolab.grading.kernel import load_budget
 from robolab.grading.notebook import CellProblem, LoadedNotebook, load_notebook
 from robolab.grading.worker import HEADER
 
@@ -54,8 +55,12 @@ __all__ = [
     "open_submission",
 ]
 
-#: Largest message accepted from a worker (a result, in pickled form).
-MAX_MESSAGE_BYTES = 256 * 2**20
+#: Without ``Limits.total_wall_seconds``, a submission's calls may take this many per-call
+#: wall limits in total.
+BUDGET_CALLS = 5
+
+#: Largest message accepted from a worker (a result, in pickled form): the codec's limit.
+MAX_MESSAGE_BYTES = codec.LIMITS.max_bytes
 #: Seconds a worker may take to start and isolate itself (before student code runs).
 STARTUP_SECONDS = 30.0
 #: How often a waiting grader checks the worker's CPU time and liveness.
@@ -195,6 +200,11 @@ class Limits:
         Processes and threads of the worker's uid (RLIMIT_NPROC).
     max_output_bytes : int
         stdout + stderr kept per submission; the rest is counted and dropped.
+    total_wall_seconds : float or None
+        Wall-clock time of all of a submission's calls together; once spent,
+        its remaining calls fail at once. None: :data:`BUDGET_CALLS` times
+        ``wall_seconds`` (a hidden test module sets it to a few times the
+        reference solution's time through ``GRADING_LIMITS``).
     """
 
     cpu_seconds: float = 30.0
@@ -202,6 +212,14 @@ class Limits:
     memory_bytes: int = 2 * 2**30
     max_processes: int = 64
     max_output_bytes: int = 2**20
+    total_wall_seconds: float | None = None
+
+    @property
+    def budget_seconds(self) -> float:
+        """The total wall time of a submission's calls."""
+        if self.total_wall_seconds is not None:
+            return self.total_wall_seconds
+        return BUDGET_CALLS * self.wall_seconds
 
 
 # --- output ------------------------------------------------------------------------------------
@@ -275,6 +293,10 @@ class _Worker:
             "OPENBLAS_NUM_THREADS": "1",
             "OMP_NUM_THREADS": "1",
             "MKL_NUM_THREADS": "1",
+            # Ray casting on its numpy path: numba's on-disk kernel cache cannot be
+            # written from here (read-only package, fresh HOME), so every worker would
+            # compile the kernels anew (seconds of CPU); the ranges are the same.
+            "ROBOLAB_RAYCAST": "numpy",
         }
         try:
             self.process = _launch(self.plan, env, workdir, (request_r, response_w, output_w))
@@ -282,6 +304,8 @@ class _Worker:
             for fd in (request_r, response_w, output_w):
                 os.close(fd)
         self.uid = sandbox.worker_uid(self.process.pid) if self.plan.drop_privileges else None
+        #: CPU time of the worker's whole process group, and the sweep after each call.
+        self.clock = processes.GroupClock(self.process.pid)
         self._finalizer = weakref.finalize(
             self, _reap, self.process, self.uid, (self.request_w, self.response_r), self.base
         )
@@ -300,6 +324,8 @@ class _Worker:
     # -- messages --
 
     def send(self, message: tuple, deadline: float) -> None:
+        """Send a request; CPU time and new processes count against it from now on."""
+        self.clock.start_call()  # before the worker can act on the request
         payload = pickle.dumps(message, protocol=5)
         frame = memoryview(HEADER.pack(len(payload)) + payload)
         poller = select.poll()
@@ -318,13 +344,12 @@ class _Worker:
 
     def receive(self, deadline: float, cpu_limit: float | None) -> Any:
         """The next message, decoded with the codec, within the wall and CPU limits."""
-        cpu_start = self.cpu_seconds()
         buffer = bytearray()
         size: int | None = None
         poller = select.poll()
         poller.register(self.response_r, select.POLLIN)
         while size is None or len(buffer) < size:
-            self._check_time(deadline, None if cpu_limit is None else (cpu_start, cpu_limit))
+            self._check_time(deadline, cpu_limit)
             if not poller.poll(POLL_SECONDS * 1000):
                 self._check_alive()
                 continue
@@ -344,7 +369,28 @@ class _Worker:
             raise StudentCodeError(
                 "the worker sent more than one answer to one request", kind="protocol"
             )
+        self._end_call(cpu_limit)
         return codec.loads(bytes(buffer[HEADER.size :]))
+
+    def _end_call(self, cpu_limit: float | None) -> None:
+        """Kill what the call started, charging its CPU time; check the scratch space."""
+        cpu, _ = self.clock.sweep()
+        if cpu_limit is not None and cpu > cpu_limit:
+            self.kill()
+            raise WorkerTimeout(
+                f"timed out: used more than {cpu_limit:g} s of CPU time "
+                f"(with the processes it started: {cpu:.1f} s)",
+                kind="timeout",
+            )
+        if self.report is not None and self.report.scratch != "tmpfs":
+            used = sandbox.directory_bytes(self.plan.workdir, sandbox.WORKDIR_BYTES)
+            if used > sandbox.WORKDIR_BYTES:
+                self.kill()
+                raise WorkerCrashed(
+                    f"wrote more than {sandbox.WORKDIR_BYTES // 2**20} MiB of files "
+                    "to its work directory",
+                    kind="crash",
+                )
 
     # -- limits and death --
 
@@ -357,17 +403,19 @@ class _Worker:
             return 0.0
         return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
-    def _check_time(self, deadline: float, cpu: tuple[float, float] | None) -> None:
+    def _check_time(self, deadline: float, cpu_limit: float | None) -> None:
         if time.monotonic() > deadline:
             self.kill()
             raise WorkerTimeout(
                 f"timed out: took longer than {self.wall_seconds:g} s of wall time",
                 kind="timeout",
             )
-        if cpu is not None and self.cpu_seconds() - cpu[0] > cpu[1]:
+        if cpu_limit is not None and self.clock.used() > cpu_limit:
             self.kill()
             raise WorkerTimeout(
-                f"timed out: used more than {cpu[1]:g} s of CPU time", kind="timeout"
+                f"timed out: used more than {cpu_limit:g} s of CPU time "
+                "(counting the processes it started)",
+                kind="timeout",
             )
 
     def _check_alive(self, force: bool = False) -> None:
@@ -541,6 +589,8 @@ class SubmissionProxy:
         self._closed = False
         self._loaded = False
         self._timed_out: set[str] = set()
+        #: Wall seconds spent in calls so far (against ``limits.budget_seconds``).
+        self.spent_seconds = 0.0
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("__") or name.startswith("_"):
@@ -605,7 +655,8 @@ class SubmissionProxy:
             _warn_if_weak(worker.report)
         try:
             deadline = time.monotonic() + self._limits.wall_seconds
-            worker.send(("define", self._notebook.cells), deadline)
+            budget = load_budget(self._limits.wall_seconds, self._limits.cpu_seconds)
+            worker.send(("define", self._notebook.cells, *budget), deadline)
             message = self._expect(
                 worker, worker.receive(deadline, self._limits.cpu_seconds), "defined"
             )
@@ -619,20 +670,23 @@ class SubmissionProxy:
                 student_traceback=exc.student_traceback,
             )
             if not self._loaded:
-                self.problems.append(CellProblem(-1, "error", self._broken.message))
+                self.problems.append(
+                    CellProblem(-1, "error", self._broken.message, "loading the notebook")
+                )
             raise self._broken from None
         if not self._loaded:
             self._loaded = True
             self.functions = [str(n) for n in message[1] if isinstance(n, str)]
             for problem in message[2]:
                 index, kind, text = problem
-                self.problems.append(CellProblem(int(index), str(kind), str(text)))
+                self.problems.append(self._notebook.problem(int(index), str(kind), str(text)))
         return worker
 
     def _expect(self, worker: _Worker, message: Any, kind: str, call_id: int | None = None) -> Any:
         ok = isinstance(message, tuple) and message and message[0] == kind
         if ok and call_id is not None:
-            ok = len(message) == 3 and message[1] == call_id
+            ok = len(message) in ((3, 4) if kind in ("ok", "error") else (3,))
+            ok = ok and message[1] == call_id
         if kind == "defined":
             ok = (
                 ok
@@ -660,6 +714,12 @@ class SubmissionProxy:
             pickle.dumps((args, kwargs), protocol=5)
         except Exception as exc:
             raise TypeError(f"arguments to {name}() cannot be sent to the worker: {exc}") from exc
+        if self.spent_seconds >= self._limits.budget_seconds:
+            raise WorkerTimeout(
+                f"{name}() was not run: the submission used up its total time budget "
+                f"of {self._limits.budget_seconds:g} s",
+                kind="timeout",
+            )
         worker = self._worker
         if (
             worker is not None
@@ -677,20 +737,30 @@ class SubmissionProxy:
             # It ran out of time before: it most likely will again, and each try
             # would cost a full wall limit. A small input still gets its answer.
             wall, cpu = min(wall, max(1.0, wall / 10)), min(cpu, max(1.0, cpu / 10))
+        left = self._limits.budget_seconds - self.spent_seconds
+        budget_bound = left < wall
+        wall = min(wall, left)
         worker.wall_seconds = wall
-        deadline = time.monotonic() + wall
+        started = time.monotonic()
+        deadline = started + wall
         try:
             worker.send(("call", call_id, name, args, kwargs, cpu), deadline)
             message = worker.receive(deadline, cpu)
         except codec.CodecError as exc:
             self._discard()
             raise StudentCodeError(
-                f"{name}() returned a value that is not plain data: {exc}", kind="result"
+                f"{name}() returned a value the grader does not accept: {exc}", kind="result"
             ) from None
         except (StudentCodeError, BrokenPipeError) as exc:
             self._discard()
             if isinstance(exc, WorkerTimeout):
                 self._timed_out.add(name)
+                if budget_bound and time.monotonic() >= deadline:
+                    exc = WorkerTimeout(
+                        f"timed out: the submission used up its total time budget of "
+                        f"{self._limits.budget_seconds:g} s",
+                        kind="timeout",
+                    )
             if isinstance(exc, BrokenPipeError):
                 raise WorkerCrashed(
                     f"the worker died before {name}() could run", kind="crash"
@@ -698,14 +768,32 @@ class SubmissionProxy:
             raise type(exc)(
                 f"{name}(): {exc.message}", kind=exc.kind, student_traceback=exc.student_traceback
             ) from None
-        return self._answer(worker, name, call_id, message)
+        finally:
+            self.spent_seconds += time.monotonic() - started
+        return self._answer(worker, name, call_id, message, args, kwargs)
 
-    def _answer(self, worker: _Worker, name: str, call_id: int, message: Any) -> Any:
+    def _answer(
+        self,
+        worker: _Worker,
+        name: str,
+        call_id: int,
+        message: Any,
+        args: tuple = (),
+        kwargs: dict | None = None,
+    ) -> Any:
         head = message[0] if isinstance(message, tuple) and message else None
         if head == "ok":
-            return self._expect(worker, message, "ok", call_id)[2]
+            message = self._expect(worker, message, "ok", call_id)
+            if len(message) < 4:
+                return message[2]
+            # What the call did to its arguments and how its result shares memory with
+            # them, replayed on the caller's objects (robolab.grading.observe).
+            return observe.replay(message[2], message[3], args, kwargs or {})
         if head == "error":
-            info = self._expect(worker, message, "error", call_id)[2]
+            message = self._expect(worker, message, "error", call_id)
+            info = message[2]
+            if len(message) == 4:  # what it changed before raising
+                observe.replay(None, message[3], args, kwargs or {})
             if not (isinstance(info, dict) and isinstance(info.get("bases"), list)):
                 self._discard()
                 raise StudentCodeError("the worker sent a malformed error", kind="protocol")
@@ -755,6 +843,8 @@ def _warn_if_weak(report: sandbox.SandboxReport) -> None:
         problems.append("submissions can open network connections")
     if not report.process_limit:
         problems.append("the worker runs as root, so the process limit does not hold")
+    if not report.protects_processes:
+        problems.append("submissions can signal or reconfigure other processes of the grader")
     for problem in problems:
         if problem in _warned:
             continue
@@ -774,7 +864,9 @@ def open_submission(
     path : str or Path
         The student's ``.ipynb``.
     lab : str, optional
-        The lab being graded; defaults to the notebook's metadata.
+        The lab being graded: the cells its exercises need are loaded. Without
+        it, the cells every function of the notebook needs are (the proxy's
+        ``lab`` is then the notebook's metadata).
     limits : Limits, optional
         Resource limits of the worker (defaults: :class:`Limits`).
 
@@ -790,7 +882,9 @@ def open_submission(
     WorkerStartError
         When the worker cannot be started or isolated.
     """
-    notebook = load_notebook(path)
+    # Graded as a lab, the lab's exercises are what the cells are chosen for; opened
+    # without one, every function the notebook defines is.
+    notebook = load_notebook(path, lab=lab) if lab else load_notebook(path, every_function=True)
     if lab is not None and notebook.lab is not None and lab != notebook.lab:
         warnings.warn(
             f"{notebook.path} says it is lab {notebook.lab!r}, graded as {lab!r}", stacklevel=2

@@ -22,6 +22,21 @@ With ``--grading-report PATH`` the plugin writes what the grader needs as JSON::
      "problems": [{"cell_index", "kind", "message"}],   # from loading the notebook
      "collection_errors": [str]}
 
+Two more markers shape the credit and the feedback (``docs/grading.md``):
+
+- ``@pytest.mark.requires("test_a", "test_b")``: the test earns its points only
+  when the named tests of the same module (every parametrization) pass too. A
+  refusal test (``pytest.raises`` on bad input) requires the tests that show the
+  function works on valid input, so a function that always raises earns nothing;
+  an end-to-end test requires the core formula's tests, so a wrong formula cannot
+  keep the end-to-end points. A gated test that passed on its own is reported as
+  failed, with a message naming the tests it waits for.
+- ``@pytest.mark.uses("p_max", ...)`` (or a module-level table ``USES =
+  {"beam_range_finder_model": ["p_hit", ...]}`` applying to every test of an
+  exercise): the test relies on other exercises, which the student's function
+  may call. When one of those fails its own tests, the failure message of this
+  test says so and points to that exercise's section of the feedback.
+
 ``message`` is the failure's own message (pytest's ``reprcrash.message``, or the
 student's traceback when the student's code raised), never the hidden test's
 source lines.
@@ -46,6 +61,10 @@ import pytest
 sys.modules.setdefault("rfc3987_syntax", None)  # type: ignore[arg-type]
 
 MARKER = "grades"
+#: Marker: the test pays only when the named tests of its module pass.
+REQUIRES = "requires"
+#: Marker: the exercises (student functions) a test relies on besides its own.
+USES = "uses"
 #: Longest failure message kept in a report; longer ones are cut in the middle.
 MAX_MESSAGE_CHARS = 2000
 
@@ -74,6 +93,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers", f"{MARKER}(exercise, points): hidden test grading one exercise function"
+    )
+    config.addinivalue_line(
+        "markers", f"{REQUIRES}(*tests): the test pays only when these tests of its module pass"
+    )
+    config.addinivalue_line(
+        "markers", f"{USES}(*exercises): other exercises this test relies on (for the feedback)"
     )
     config.stash[_problems_key] = []
     path = config.getoption("--grading-report")
@@ -148,6 +173,44 @@ def grade_of(item: pytest.Item) -> Grade | None:
     return Grade(exercise, float(points))
 
 
+def _base_name(item: pytest.Item) -> str:
+    """The test function's name without its parametrization."""
+    return getattr(item, "originalname", None) or item.name.split("[")[0]
+
+
+def required_of(item: pytest.Item) -> list[str]:
+    """Names of the tests (of the same module) that ``item`` waits for."""
+    names: list[str] = []
+    for mark in item.iter_markers(REQUIRES):
+        names += [n for n in mark.args if n not in names]
+    return names
+
+
+def uses_of(item: pytest.Item) -> list[str]:
+    """The exercises ``item`` relies on besides its own: its ``uses`` marker and ``USES``."""
+    names: list[str] = []
+    for mark in item.iter_markers(USES):
+        names += [n for n in mark.args if n not in names]
+    grade = grade_of(item)
+    table = getattr(getattr(item, "module", None), "USES", None) or {}
+    if grade is not None:
+        names += [n for n in table.get(grade.exercise, []) if n not in names]
+    return [n for n in names if grade is None or n != grade.exercise]
+
+
+def _check_requires(item: pytest.Item, names_by_module: dict[str, set[str]]) -> str | None:
+    wanted = required_of(item)
+    module = item.nodeid.split("::")[0]
+    if any(not isinstance(n, str) for n in wanted):
+        return f"{REQUIRES} takes test function names, got {wanted!r}"
+    unknown = [n for n in wanted if n not in names_by_module.get(module, set())]
+    if unknown:
+        return f"{REQUIRES} names tests that {module} does not have: {unknown}"
+    if _base_name(item) in wanted:
+        return f"{REQUIRES} names the test itself"
+    return None
+
+
 def _is_hidden_test(item: pytest.Item) -> bool:
     folder = Path(str(item.path)).parent
     return folder.name == "labs" and folder.parent.name == "tests"
@@ -157,12 +220,17 @@ def pytest_collection_modifyitems(
     session: pytest.Session, config: pytest.Config, items: list[pytest.Item]
 ) -> None:
     problems = []
+    names_by_module: dict[str, set[str]] = {}
+    for item in items:
+        names_by_module.setdefault(item.nodeid.split("::")[0], set()).add(_base_name(item))
     for item in items:
         try:
             grade = grade_of(item)
         except ValueError as exc:
             problems.append(f"{item.nodeid}: {exc}")
             continue
+        if (bad := _check_requires(item, names_by_module)) is not None:
+            problems.append(f"{item.nodeid}: {bad}")
         if grade is None and _is_hidden_test(item):
             problems.append(
                 f"{item.nodeid}: hidden tests must be marked "
@@ -188,6 +256,7 @@ def describe(item: pytest.Item) -> str:
 
 
 _REWRITE_TAIL = re.compile(r"\n(assert |\s*\+\s+where ).*", re.DOTALL)
+_DID_NOT_RAISE = re.compile(r"DID NOT RAISE (?:<class '(?:[\w.]*\.)?(\w+)'>|\(?([\w., ]+)\)?)")
 
 
 def failure_message(exc: BaseException | None, crash_message: str | None) -> str:
@@ -211,6 +280,13 @@ def failure_message(exc: BaseException | None, crash_message: str | None) -> str
         if head.strip() and head.strip() not in ("AssertionError", "AssertionError:"):
             text = head
     text = text.strip()
+    if (missed := _DID_NOT_RAISE.search(text)) is not None:
+        kind = missed.group(1) or missed.group(2) or "an error"
+        text = (
+            f"expected {kind} for the bad input this check names, but the function returned "
+            "normally: the text asks to refuse such input with a clear error, not to compute "
+            "on it"
+        )
     if len(text) > MAX_MESSAGE_CHARS:
         half = MAX_MESSAGE_CHARS // 2
         cut = len(text) - MAX_MESSAGE_CHARS
@@ -252,6 +328,10 @@ class GradingCollector:
                 "points": grade.points if grade else 0.0,
                 "outcome": "not run",
                 "message": "",
+                "module": item.nodeid.split("::")[0],
+                "test": _base_name(item),
+                "requires": required_of(item),
+                "uses": uses_of(item),
             },
         )
 
@@ -297,7 +377,7 @@ class GradingCollector:
         data = {
             "notebook": self.config.getoption("--notebook"),
             "exitstatus": exitstatus,
-            "tests": list(self.records.values()),
+            "tests": settle(list(self.records.values())),
             "problems": self.config.stash[_problems_key],
             "collection_errors": self.collection_errors,
         }
@@ -305,3 +385,69 @@ class GradingCollector:
         tmp = self.path.with_name(self.path.name + ".part")
         tmp.write_text(json.dumps(data, indent=1))
         tmp.replace(self.path)
+
+
+# --- credit that follows the exercise's parts, and hints across exercises ---------------------
+
+
+def _label(record: dict) -> str:
+    return f"\"{record['description']}\""
+
+
+def settle(records: list[dict]) -> list[dict]:
+    """The records as the student is graded: ``requires`` gates applied, ``uses`` hints added.
+
+    Pure: returns new dicts, the collector's own records stay as the tests ran
+    (so a rewrite after a later test starts again from the raw outcomes).
+
+    - A passed test whose required tests did not all pass becomes "failed", with
+      a message naming them (repeated until nothing changes: gates can chain).
+    - A failed test that uses an exercise which fails some of its own tests gets
+      a closing sentence pointing to that exercise's section.
+    """
+    out = [dict(r) for r in records]
+    by_test: dict[tuple[str, str], list[dict]] = {}
+    for r in out:
+        by_test.setdefault((r.get("module", ""), r.get("test", "")), []).append(r)
+    changed = True
+    while changed:
+        changed = False
+        for r in out:
+            if r["outcome"] != "passed" or not r.get("requires"):
+                continue
+            waiting = [
+                other
+                for name in r["requires"]
+                for other in by_test.get((r.get("module", ""), name), [])
+                if other["outcome"] != "passed"
+            ]
+            if waiting:
+                r["outcome"] = "failed"
+                r["gated"] = True
+                r["message"] = (
+                    f"This check passed on its own, but it counts only when `{r['exercise']}` "
+                    f"also passes {', '.join(_label(w) for w in waiting[:3])}"
+                    f"{' and more' if len(waiting) > 3 else ''}: refusing bad input or "
+                    "finishing the whole run earns points only for a function that computes "
+                    "the right values."
+                )
+                changed = True
+    failing: dict[str, int] = {}
+    for r in out:
+        if r["outcome"] in ("failed", "error") and not r.get("gated"):
+            failing[r["exercise"]] = failing.get(r["exercise"], 0) + 1
+    for r in out:
+        if r["outcome"] not in ("failed", "error"):
+            continue
+        culprits = [u for u in r.get("uses", []) if u in failing and u != r["exercise"]]
+        if culprits:
+            names = ", ".join(f"`{u}`" for u in culprits)
+            r["message"] = (r.get("message") or "").rstrip() + (
+                f"\n\nThis may be because {names} "
+                f"{'is' if len(culprits) == 1 else 'are'} wrong: "
+                f"{'it fails' if len(culprits) == 1 else 'they fail'} "
+                f"{'its' if len(culprits) == 1 else 'their'} own checks, which "
+                f"{r['exercise']} relies on; see the section on {names} and fix "
+                f"{'it' if len(culprits) == 1 else 'them'} first."
+            )
+    return out

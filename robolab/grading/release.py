@@ -4,9 +4,10 @@
 
     out/notebooks/NN_<lab>.ipynb   stubs, outputs cleared (refused if an exercise is not a stub)
     out/robolab/                   the package (the grader ships too: it holds no answers)
-    out/data/                      the bundled data
+    out/robolab/data/              the bundled data, as package data (``robolab.DATA_DIR``)
     out/README.md                  how to work through the labs and check them
     out/pyproject.toml             the repository's, with the ``solutions`` package left out
+    out/dist/robolab-*.whl         with ``wheel=True``: the edition as one installable file
 
 and never ``solutions/``, ``tests/`` or ``examples/``.
 """
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import ast
 import shutil
+import subprocess
 import sys
 from pathlib import Path
 
@@ -40,18 +42,41 @@ STUDENT_README = """\
 One Jupyter notebook per lab in `notebooks/`. In each, fill in the cells that
 say `# YOUR CODE HERE` and run the visible check below each exercise.
 
+## On your machine
+
     python -m venv .venv && .venv/bin/pip install -e .
     .venv/bin/pip install jupyterlab
     .venv/bin/jupyter lab notebooks/
 
+or, with only the wheel (`dist/robolab-*.whl`) and a notebook:
+
+    pip install robolab-*.whl jupyterlab && jupyter lab
+
+The maps, bags and data sets come inside the package (`robolab.DATA_DIR`), so a
+notebook runs from any folder.
+
+## On Google Colab
+
+Upload the notebook, then make this its first cell and run it (replace the
+address with the one your course gives for the wheel, or upload the wheel and
+write its file name):
+
+    %pip install --quiet "robolab @ https://example.org/your-course/robolab-0.1.0-py3-none-any.whl"
+
+Colab then has everything the labs import (numpy, scipy, matplotlib,
+ipywidgets, rosbags, filterpy); sliders and animations work there too.
+
+## Checking your work
+
 Check a whole notebook from a terminal:
 
-    .venv/bin/robolab check notebooks/<NN_lab>.ipynb
+    robolab check notebooks/<NN_lab>.ipynb
 
 The visible checks are quick and friendly, and weaker than the tests your work
 is graded with: passing them is a good sign, not a grade. Submit the notebook
-file itself; only the functions you define are graded, so keep their names and
-signatures as given.
+file itself. What is graded: the functions your notebook defines when it runs
+top to bottom (the last definition of a name wins), with the names and
+signatures as given; cells that only show, plot or check cost nothing.
 
 Units are metres, radians and seconds; angles are wrapped to [-pi, pi); poses
 are `(x, y, theta)` and many poses an `(N, 3)` array.
@@ -121,9 +146,10 @@ def student_pyproject(root: Path) -> str:
     if scripts := config["project"].get("scripts"):
         parts.append(_table("project.scripts", scripts))
     parts.append(_table("tool.setuptools.packages.find", {"include": ["robolab*"]}))
-    package_data = config.get("tool", {}).get("setuptools", {}).get("package-data")
-    if package_data:
-        parts.append(_table("tool.setuptools.package-data", package_data))
+    package_data = dict(config.get("tool", {}).get("setuptools", {}).get("package-data", {}))
+    # The bundled data travels inside the package, so a wheel install finds it.
+    package_data["robolab"] = sorted({*package_data.get("robolab", []), "data/*"})
+    parts.append(_table("tool.setuptools.package-data", package_data))
     return "\n".join(parts)
 
 
@@ -160,8 +186,51 @@ def _prepare(out: Path, root: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
 
 
-def build_release(out: Path, root: Path | None = None) -> Path:
+def build_wheel(edition: Path) -> Path:
+    """Build the wheel of a student edition into ``edition/dist`` and return its path.
+
+    Uses ``pip wheel`` on the edition's own ``pyproject.toml`` (so the wheel holds
+    exactly the edition: ``robolab`` with its data, no ``solutions``).
+
+    Raises
+    ------
+    ReleaseError
+        When pip cannot build it (its last lines of output are in the message).
+    """
+    dist = edition / "dist"
+    dist.mkdir(exist_ok=True)
+    for old in dist.glob("robolab-*.whl"):
+        old.unlink()
+    cmd = [sys.executable, "-m", "pip", "wheel", "--quiet", "--no-deps", "-w", str(dist)]
+    try:
+        import setuptools
+
+        if int(setuptools.__version__.split(".")[0]) >= 68:
+            cmd.append("--no-build-isolation")  # offline, with the build tools already here
+    except ImportError:
+        pass
+    proc = subprocess.run(cmd + [str(edition)], capture_output=True, text=True, check=False)
+    wheels = sorted(dist.glob("robolab-*.whl"))
+    if proc.returncode != 0 or not wheels:
+        tail = "\n".join((proc.stdout + proc.stderr).strip().splitlines()[-8:])
+        raise ReleaseError(f"building the wheel of {edition} failed:\n{tail}")
+    # pip leaves its build folder in the edition; the wheel is what ships.
+    for junk in ("build", "robolab.egg-info"):
+        shutil.rmtree(edition / junk, ignore_errors=True)
+    return wheels[-1]
+
+
+def build_release(out: Path, root: Path | None = None, *, wheel: bool = False) -> Path:
     """Write the student edition of the project at ``root`` into ``out`` and return ``out``.
+
+    Parameters
+    ----------
+    out : Path
+        A new or empty folder, or an earlier release (it is replaced).
+    root : Path, optional
+        The project; default the one this package belongs to.
+    wheel : bool
+        Also build ``out/dist/robolab-<version>-py3-none-any.whl`` (:func:`build_wheel`).
 
     Raises
     ------
@@ -173,11 +242,13 @@ def build_release(out: Path, root: Path | None = None) -> Path:
     _prepare(out, root)
     shutil.copytree(root / "robolab", out / "robolab", ignore=_IGNORE)
     if (root / "data").is_dir():
-        shutil.copytree(root / "data", out / "data", ignore=_IGNORE)
+        shutil.copytree(root / "data", out / "robolab" / "data", ignore=_IGNORE)
     (out / "notebooks").mkdir()
     for nb in sorted((root / "notebooks").glob("*.ipynb")):
         _release_notebook(nb, out / "notebooks" / nb.name)
     (out / "README.md").write_text(STUDENT_README)
     (out / "pyproject.toml").write_text(student_pyproject(root))
     (out / MARKER_FILE).write_text("built by `robolab release`; safe to delete and rebuild\n")
+    if wheel:
+        build_wheel(out)
     return out

@@ -14,10 +14,11 @@ import signal
 import subprocess
 import sys
 import tempfile
+import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -28,11 +29,12 @@ from robolab.grading.labs import LabError, find_lab, lab_of_notebook, project_ro
 
 __all__ = [
     "DEFAULT_TIMEOUT",
+    "BatchInterrupted",
     "SubmissionResult",
     "TestOutcome",
     "grade_all",
     "grade_submission",
-    "submission_names",
+    "stop_running",
 ]
 
 #: Seconds one submission may take in total before its pytest run is stopped.
@@ -78,6 +80,31 @@ class SubmissionResult:
     errors: list[str] = field(default_factory=list)
     fatal: bool = False
     seconds: float = 0.0
+    #: What the machine's sandbox failed to protect ("" when everything held), from
+    #: :func:`robolab.grading.protection.describe_protection`.
+    isolation: str = ""
+    #: Things the instructor must look at (a lab that differs from the batch's, ...);
+    #: shown in the summary and the gradebook, not a grading error.
+    flags: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        """A JSON-ready copy (the path as text, surrogate escapes kept) for the batch state."""
+        data = asdict(self)
+        data["path"] = os.fsdecode(self.path)
+        return data
+
+    @classmethod
+    def from_dict(cls, data: dict) -> SubmissionResult:
+        """Inverse of :meth:`to_dict`; keys this version does not know are ignored."""
+        known = {f.name for f in fields(cls)}
+        data = {k: v for k, v in data.items() if k in known}
+        data["path"] = Path(data["path"])
+        test_fields = {f.name for f in fields(TestOutcome)}
+        data["tests"] = [
+            TestOutcome(**{k: v for k, v in t.items() if k in test_fields})
+            for t in data.get("tests", [])
+        ]
+        return cls(**data)
 
     def exercise_scores(self) -> dict[str, tuple[float, float]]:
         """``{exercise: (earned, possible)}`` in the order the tests run."""
@@ -96,19 +123,45 @@ class SubmissionResult:
         return sum(t.points for t in self.tests)
 
 
-def submission_names(paths: Sequence[Path]) -> list[str]:
-    """Unique, file-name-safe names: the stem, or ``<folder>-<stem>`` when stems repeat."""
-    stems = [p.stem for p in paths]
-    names = [
-        s if stems.count(s) == 1 else f"{p.parent.name}-{s}"
-        for p, s in zip(paths, stems, strict=True)
-    ]
-    seen: dict[str, int] = {}
-    unique = []
-    for n in names:
-        seen[n] = seen.get(n, 0) + 1
-        unique.append(n if seen[n] == 1 else f"{n}-{seen[n]}")
-    return unique
+class BatchInterrupted(KeyboardInterrupt):
+    """Grading was interrupted (Ctrl-C, SIGTERM); ``done`` results had finished before."""
+
+    def __init__(self, done: int, total: int):
+        super().__init__(f"interrupted after {done} of {total} submissions")
+        self.done, self.total = done, total
+
+
+#: pytest runs under way (for stop_running on Ctrl-C / SIGTERM).
+_LIVE: set[subprocess.Popen] = set()
+_LIVE_LOCK = threading.Lock()
+#: Set by stop_running: no new pytest run starts until the next grade_all.
+_STOPPING = threading.Event()
+
+
+def _stop(proc: subprocess.Popen) -> None:
+    """SIGINT the run's process group (fixtures close the worker), then SIGKILL it."""
+    for sig, wait in ((signal.SIGINT, _GRACE), (signal.SIGKILL, None)):
+        try:
+            os.killpg(proc.pid, sig)
+            proc.wait(timeout=wait)
+            return
+        except ProcessLookupError:
+            return
+        except subprocess.TimeoutExpired:
+            continue
+
+
+def stop_running() -> int:
+    """Stop every pytest run this process started that is still running; return how many."""
+    with _LIVE_LOCK:
+        _STOPPING.set()
+        running = list(_LIVE)
+    threads = [threading.Thread(target=_stop, args=(p,)) for p in running]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return len(running)
 
 
 def _pytest_command(
@@ -150,22 +203,20 @@ def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | No
     if workers is not None:
         env[warm.FD_VARIABLE] = str(workers.fileno())
     start = time.monotonic()
-    with log.open("wb") as out:
+    with log.open("wb") as out, _LIVE_LOCK:
+        if _STOPPING.is_set():
+            return None, 0.0
         proc = _launch(cmd, cwd, env, out.fileno(), workers)
-        try:
-            code: int | None = proc.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            code = None
-            # SIGINT first so pytest's finalizers close the student's worker, then make sure.
-            for sig, wait in ((signal.SIGINT, _GRACE), (signal.SIGKILL, None)):
-                try:
-                    os.killpg(proc.pid, sig)
-                    proc.wait(timeout=wait)
-                    break
-                except ProcessLookupError:
-                    break
-                except subprocess.TimeoutExpired:
-                    continue
+        _LIVE.add(proc)
+    try:
+        code: int | None = proc.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        code = None
+        # SIGINT first so pytest's finalizers close the student's worker, then make sure.
+        _stop(proc)
+    finally:
+        with _LIVE_LOCK:
+            _LIVE.discard(proc)
     return code, time.monotonic() - start
 
 
@@ -285,27 +336,69 @@ def grade_all(
     paths: Sequence[Path],
     *,
     lab: str | None = None,
+    labs: Sequence[str | None] | None = None,
+    names: Sequence[str] | None = None,
     root: Path | None = None,
     jobs: int = 1,
     timeout: float = DEFAULT_TIMEOUT,
     progress: bool = True,
+    on_result: Callable[[int, SubmissionResult], None] | None = None,
 ) -> list[SubmissionResult]:
-    """Grade every submission, ``jobs`` at a time; results come back in the order of ``paths``."""
+    """Grade every submission, ``jobs`` at a time; results come back in the order of ``paths``.
+
+    Parameters
+    ----------
+    lab, labs
+        The lab for every submission, or one per submission (None: the notebook's own).
+    names
+        The submissions' names (default: their stems).
+    on_result
+        Called in this thread with ``(index, result)`` as soon as each submission finishes,
+        so that the caller can write it down before the next one ends.
+
+    Raises
+    ------
+    BatchInterrupted
+        On Ctrl-C (or a KeyboardInterrupt raised by a SIGTERM handler): every pytest run
+        under way is stopped first; ``on_result`` has seen every result that finished.
+    """
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
+    if not timeout > 0:
+        raise ValueError(f"timeout must be a positive number of seconds, got {timeout}")
     root = root or project_root()
+    _STOPPING.clear()
     paths = [Path(p) for p in paths]
-    names = submission_names(paths)
+    from robolab.grading.protection import describe_protection  # once per batch
+
+    protection = describe_protection()
+    protection.announce()
+    labs = list(labs) if labs is not None else [lab] * len(paths)
+    names = list(names) if names is not None else [p.stem for p in paths]
     results: list[SubmissionResult | None] = [None] * len(paths)
-    with (
-        ThreadPoolExecutor(max_workers=jobs) as pool,
-        tqdm(total=len(paths), unit="submission", disable=not progress, file=sys.stderr) as bar,
-    ):
-        futures = {
-            pool.submit(grade_submission, p, lab=lab, name=n, root=root, timeout=timeout): i
-            for i, (p, n) in enumerate(zip(paths, names, strict=True))
-        }
-        for future in as_completed(futures):
-            results[futures[future]] = future.result()
-            bar.update(1)
+    pool = ThreadPoolExecutor(max_workers=jobs)
+    done = 0
+    try:
+        with tqdm(
+            total=len(paths), unit="submission", disable=not progress, file=sys.stderr
+        ) as bar:
+            futures = {
+                pool.submit(grade_submission, p, lab=la, name=n, root=root, timeout=timeout): i
+                for i, (p, la, n) in enumerate(zip(paths, labs, names, strict=True))
+            }
+            for future in as_completed(futures):
+                index = futures[future]
+                results[index] = future.result()
+                results[index].isolation = protection.column
+                done += 1
+                if on_result is not None:
+                    on_result(index, results[index])
+                bar.update(1)
+    except KeyboardInterrupt:
+        for future in futures if "futures" in locals() else ():
+            future.cancel()
+        stop_running()
+        pool.shutdown(wait=True, cancel_futures=True)
+        raise BatchInterrupted(done, len(paths)) from None
+    pool.shutdown(wait=True)
     return [r for r in results if r is not None]

@@ -17,6 +17,14 @@ in this order:
 5. Landlock (ABI >= 1): read-only access to the same paths, read-write to the
    work directory, nothing else; ABI >= 4 denies TCP bind/connect; ABI >= 6
    scopes signals and abstract unix sockets to the worker's own processes.
+6. The worker becomes the reaper of its orphans (``PR_SET_CHILD_SUBREAPER``),
+   then installs a seccomp filter (:mod:`robolab.grading.seccomp`): no other
+   process can be touched, no socket opened, no process leaves the group.
+
+An unprivileged grader gets step 2 too when the kernel allows unprivileged
+user namespaces: the worker enters a user namespace of its own (its uid
+mapped to itself), builds the same view with a size-capped tmpfs work
+directory and no network, then drops every capability.
 
 Landlock alone (any user, kernel >= 5.13) already makes the answers
 unreadable; the namespaces add "no network at all" and the view as a second
@@ -35,11 +43,14 @@ import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from robolab.grading import seccomp
+
 __all__ = [
     "SandboxError",
     "SandboxPlan",
     "SandboxReport",
     "apply",
+    "directory_bytes",
     "landlock_abi",
     "plan_sandbox",
     "worker_uid",
@@ -87,8 +98,11 @@ _SCOPE_SIGNAL = 1 << 1  # ABI 6
 
 _PR_SET_NO_NEW_PRIVS = 38
 _PR_SET_PDEATHSIG = 1
+_PR_SET_CHILD_SUBREAPER = 36
 _CLONE_NEWNS = 0x00020000
 _CLONE_NEWNET = 0x40000000
+_CLONE_NEWUSER = 0x10000000
+_LINUX_CAPABILITY_VERSION_3 = 0x20080522
 _MS_RDONLY = 1
 _MS_NOSUID = 2
 _MS_NODEV = 4
@@ -191,6 +205,11 @@ class SandboxPlan:
         Files copied into the fresh work directory, ``{relative destination:
         source}`` (matplotlib's font cache, so no worker spends a second
         rebuilding it).
+    user_namespace : bool
+        Not root: build the view inside a user namespace of the worker's own
+        when the kernel allows it (needs ``view_root``).
+    seccomp : bool
+        Install the seccomp filter of :mod:`robolab.grading.seccomp`.
     """
 
     workdir: str
@@ -204,6 +223,8 @@ class SandboxPlan:
     memory_bytes: int = 2 * 2**30
     max_processes: int = 64
     seed_files: dict[str, str] = field(default_factory=dict)
+    user_namespace: bool = False
+    seccomp: bool = True
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -215,16 +236,27 @@ class SandboxReport:
 
     landlock_abi: int = 0
     landlock: bool = False
-    network_denied: str = "no"  # "namespace", "landlock-tcp" or "no"
+    network_denied: str = "no"  # "namespace", "seccomp" (no sockets), "landlock-tcp" or "no"
     view: bool = False
+    user_namespace: bool = False
     uid: int = -1
     process_limit: bool = False
+    seccomp: bool = False
+    #: What keeps the worker from signalling other processes: "uid", "landlock", "seccomp", "no".
+    signals: str = "no"
+    #: What caps the work directory: "tmpfs" or "" (the grader then checks its size).
+    scratch: str = ""
     notes: list[str] = field(default_factory=list)
 
     @property
     def protects_answers(self) -> bool:
         """True when the OS keeps the worker from reading solutions/ and tests/."""
         return self.landlock or self.view
+
+    @property
+    def protects_processes(self) -> bool:
+        """True when the worker can neither signal nor reconfigure another process."""
+        return self.uid >= UID_BASE or (self.seccomp and self.signals != "no")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -250,15 +282,17 @@ def plan_sandbox(
     kernel has it. ``workdir`` must be an empty directory the grader owns; its
     parent gets the view root next to it.
     """
-    root = os.geteuid() == 0 and sys.platform == "linux"
+    linux = sys.platform == "linux"
+    root = os.geteuid() == 0 and linux
     view_root = None
-    if root:
+    if linux:
         view_root = str(workdir.parent / "view")
         os.makedirs(view_root, exist_ok=True)
     return SandboxPlan(
         workdir=str(workdir),
         view_root=view_root,
         drop_privileges=root,
+        user_namespace=linux and not root,
         landlock=True,
         readonly=[str(p) for p in readonly],
         forbidden=[str(p) for p in forbidden],
@@ -296,7 +330,9 @@ def apply(plan: SandboxPlan) -> SandboxReport:
     seeds = _read_seeds(plan)  # before the view hides their sources
     uid = worker_uid(os.getpid()) if plan.drop_privileges else None
 
-    if plan.view_root is not None:
+    if plan.view_root is not None and plan.user_namespace and not plan.drop_privileges:
+        _user_namespace_view(libc, plan, readonly, report)
+    elif plan.view_root is not None:
         if libc.unshare(_CLONE_NEWNET) == 0:
             report.network_denied = "namespace"
         else:
@@ -304,6 +340,7 @@ def apply(plan: SandboxPlan) -> SandboxReport:
         if libc.unshare(_CLONE_NEWNS) == 0:
             _enter_view(libc, plan, readonly, uid)
             report.view = True
+            report.scratch = "tmpfs"
         else:
             report.notes.append(f"no mount namespace: {os.strerror(ctypes.get_errno())}")
 
@@ -338,7 +375,110 @@ def apply(plan: SandboxPlan) -> SandboxReport:
     elif plan.landlock:
         report.notes.append("Landlock is not available on this kernel")
     os.chdir(plan.workdir)
+    _confine_processes(libc, plan, report)
     return report
+
+
+def _user_namespace_view(
+    libc: ctypes.CDLL, plan: SandboxPlan, readonly: list[str], report: SandboxReport
+) -> None:
+    """Not root: the view, a capped tmpfs and no network, inside a user namespace of our own."""
+    uid, gid = os.getuid(), os.getgid()
+    if libc.unshare(_CLONE_NEWUSER | _CLONE_NEWNS | _CLONE_NEWNET) != 0:
+        report.notes.append(f"no user namespace: {os.strerror(ctypes.get_errno())}")
+        return
+    try:
+        # Our uid and gid map to themselves; no supplementary groups can be set.
+        Path("/proc/self/setgroups").write_text("deny")
+        Path("/proc/self/uid_map").write_text(f"{uid} {uid} 1")
+        Path("/proc/self/gid_map").write_text(f"{gid} {gid} 1")
+        report.user_namespace = True
+        report.network_denied = "namespace"
+        _enter_view(libc, plan, readonly, None)
+        report.view = True
+        report.scratch = "tmpfs"
+    except OSError as exc:
+        report.notes.append(f"user namespace view failed: {exc}")
+    finally:
+        if report.user_namespace:
+            _drop_capabilities(libc)
+
+
+class _CapHeader(ctypes.Structure):
+    _fields_ = [("version", ctypes.c_uint32), ("pid", ctypes.c_int)]
+
+
+class _CapData(ctypes.Structure):
+    _fields_ = [
+        ("effective", ctypes.c_uint32),
+        ("permitted", ctypes.c_uint32),
+        ("inheritable", ctypes.c_uint32),
+    ]
+
+
+def _drop_capabilities(libc: ctypes.CDLL) -> None:
+    # The capabilities a new user namespace grants are no longer needed once the view is built.
+    header = _CapHeader(_LINUX_CAPABILITY_VERSION_3, 0)
+    data = (_CapData * 2)()
+    _check(libc.capset(ctypes.byref(header), data), "capset")
+
+
+def _confine_processes(libc: ctypes.CDLL, plan: SandboxPlan, report: SandboxReport) -> None:
+    """Reap our orphans (so their CPU time is ours), then the seccomp filter."""
+    if report.uid >= UID_BASE:
+        report.signals = "uid"
+    elif report.landlock and report.landlock_abi >= 6:
+        report.signals = "landlock"
+    if sys.platform != "linux":
+        return
+    _check(libc.prctl(_PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0), "prctl(PR_SET_CHILD_SUBREAPER)")
+    if not plan.seccomp:
+        return
+    if not seccomp.supported():
+        report.notes.append(f"no seccomp filter for {platform.machine()}")
+        return
+    own_group = os.getpgrp() if report.signals == "no" else None
+    try:
+        seccomp.install(own_group)
+    except seccomp.SeccompError as exc:
+        report.notes.append(f"seccomp filter refused: {exc}")
+        return
+    report.seccomp = True
+    if report.signals == "no":
+        report.signals = "seccomp"
+    if report.network_denied != "namespace":
+        report.network_denied = "seccomp"
+
+
+#: Most files and directories the grader counts in a work directory without a tmpfs cap.
+MAX_WORKDIR_ENTRIES = 4096
+
+
+def directory_bytes(path: str, limit: int) -> int:
+    """Disk space used beneath ``path`` (allocated blocks), counted up to just past ``limit``.
+
+    More than :data:`MAX_WORKDIR_ENTRIES` entries count as ``limit + 1``: the
+    walk stays cheap whatever a worker created.
+    """
+    total, entries, pending = 0, 0, [path]
+    while pending and total <= limit:
+        try:
+            iterator = os.scandir(pending.pop())
+        except OSError:
+            continue
+        with iterator:
+            for entry in iterator:
+                entries += 1
+                if entries > MAX_WORKDIR_ENTRIES:
+                    return limit + 1
+                try:
+                    info = entry.stat(follow_symlinks=False)
+                except OSError:
+                    continue
+                total += info.st_blocks * 512
+                if entry.is_dir(follow_symlinks=False):
+                    pending.append(entry.path)
+    return total
 
 
 def _readonly_paths(plan: SandboxPlan, report: SandboxReport) -> list[str]:

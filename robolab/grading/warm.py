@@ -6,7 +6,7 @@ control socket it inherited, else one started on first use), :func:`shared_grade
 (a zygote forking the pytest runs of one project root), :class:`Zygote` (a handle:
 ``spawn`` sends a request and its descriptors, ``SCM_RIGHTS``) and
 :class:`WarmChild` (a forked child with the parts of :class:`subprocess.Popen`
-the proxy and the runner use). See ``docs/grading.md``, section 6.
+the proxy and the runner use). See ``docs/grading.md``, section 8.
 """
 
 from __future__ import annotations

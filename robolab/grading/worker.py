@@ -12,7 +12,7 @@ answers requests until its request pipe closes.
 Wire protocol: each message is an 8-byte little-endian length followed by a
 pickle (protocol 5). Grader -> worker (trusted, plain pickle)::
 
-    ("define", [(cell_index, source), ...])
+    ("define", [(cell_index, source), ...], wall_seconds, cpu_seconds)
     ("call", call_id, name, args, kwargs, cpu_seconds)
 
 Worker -> grader (untrusted: decoded with :func:`robolab.grading.codec.loads`)::
@@ -20,8 +20,8 @@ Worker -> grader (untrusted: decoded with :func:`robolab.grading.codec.loads`)::
     ("failed", message)                       # the sandbox could not be applied
     ("ready", sandbox_report_dict)
     ("defined", [function names], [(cell_index, "error", message)])
-    ("ok", call_id, value)
-    ("error", call_id, {"type", "bases", "message", "traceback"})
+    ("ok", call_id, value, observation)      # observation: see robolab.grading.observe
+    ("error", call_id, {"type", "bases", "message", "traceback"}, observation)
     ("missing", call_id, name)
     ("exit", call_id, description)            # SystemExit / KeyboardInterrupt
 
@@ -122,32 +122,19 @@ def describe_exception(exc: BaseException) -> dict:
     return {"type": kind.__qualname__, "bases": bases, "message": _text(exc), "traceback": text}
 
 
-def define(namespace: dict, cells: list[tuple[int, str]]) -> list[tuple[int, str, str]]:
-    """Execute the kept definitions statement by statement; return the errors.
+def define(
+    namespace: dict, cells: list[tuple[int, str]], wall_seconds: float, cpu_seconds: float
+) -> list[tuple[int, str, str]]:
+    """Run the notebook's needed cells whole, in order, as a kernel would; return the failures.
 
-    One failing statement (an import of a missing module, a decorator that
-    raises) is recorded and the statements after it still run.
+    See :func:`robolab.grading.kernel.run_cells`: a cell that raises or does
+    not compile is recorded and the next cell still runs; the cell that uses up
+    the load budget (``wall_seconds``, ``cpu_seconds``) is stopped and named.
     """
-    import ast
-    import linecache
+    from robolab.grading import kernel
 
-    problems = []
-    for cell_index, source in cells:
-        filename = f"<cell {cell_index}>"
-        linecache.cache[filename] = (len(source), None, source.splitlines(True), filename)
-        try:
-            tree = ast.parse(source, filename)
-        except SyntaxError as exc:
-            problems.append((cell_index, "syntax", f"{exc.msg} (line {exc.lineno})"))
-            continue
-        for node in tree.body:
-            code = compile(ast.Module(body=[node], type_ignores=[]), filename, "exec")
-            try:
-                exec(code, namespace)  # noqa: S102 - running student code is this process's job
-            except BaseException as exc:  # noqa: BLE001 - SystemExit at definition time too
-                info = describe_exception(exc)
-                problems.append((cell_index, "error", f"{info['type']}: {info['message']}"))
-    return problems
+    kernel.new_namespace(SUBMISSION_MODULE, namespace)
+    return kernel.run_cells(namespace, cells, wall_seconds, cpu_seconds, kernel.flush)
 
 
 def function_names(namespace: dict) -> list[str]:
@@ -165,6 +152,16 @@ def _dumps(value: object) -> bytes:
     from robolab.grading.codec import dumps  # imports numpy: only after the sandbox is applied
 
     return dumps(value)
+
+
+def _watch(args: tuple, kwargs: dict):
+    """A snapshot of the call's argument arrays (see :mod:`robolab.grading.observe`), or None."""
+    from robolab.grading.observe import Watch  # imports numpy: only after the sandbox is applied
+
+    try:
+        return Watch(args, kwargs)
+    except Exception:  # noqa: BLE001 - an argument numpy cannot copy: nothing is observed
+        return None
 
 
 def _limit_cpu(cpu_seconds: float) -> None:
@@ -189,20 +186,27 @@ def _call(
     kwargs: dict,
     cpu_seconds: float,
 ) -> None:
+    watch = None
     function = namespace.get(name)
     if name.startswith("__") or function is None or not callable(function):
         _send(response_fd, ("missing", call_id, name))
         return
     try:
         _limit_cpu(cpu_seconds)
+        watch = _watch(args, kwargs)
         value = function(*args, **kwargs)
-        payload = _dumps(("ok", call_id, value))
+        observation = watch.report(value) if watch is not None else None
+        payload = _dumps(("ok", call_id, value, observation))
     except (SystemExit, KeyboardInterrupt, GeneratorExit) as exc:
         code = getattr(exc, "code", None)
         _send(response_fd, ("exit", call_id, f"{type(exc).__name__}({_text(code)})"))
         return
     except BaseException as exc:  # noqa: BLE001 - any student failure is reported, not fatal
-        _send(response_fd, ("error", call_id, describe_exception(exc)))
+        try:  # what it changed before raising, as a caller in-process would see it
+            observation = watch.report(None) if watch is not None else None
+        except BaseException:  # noqa: BLE001 - `watch` unbound, or the snapshot itself failed
+            observation = None
+        _send(response_fd, ("error", call_id, describe_exception(exc), observation))
         return
     finally:
         for stream in (sys.stdout, sys.stderr):
@@ -211,6 +215,17 @@ def _call(
             except Exception:  # noqa: BLE001 - the student may have closed or replaced it
                 pass
     write_frame(response_fd, payload)
+
+
+def reap_children() -> None:
+    """Reap the children the grader killed after the last call (the worker is their reaper)."""
+    while True:
+        try:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            return
 
 
 def serve(request_fd: int, response_fd: int) -> int:
@@ -224,14 +239,18 @@ def serve(request_fd: int, response_fd: int) -> int:
         frame = read_frame(request_fd)
         if frame is None:
             return 0
+        reap_children()
         request = pickle.loads(frame)  # noqa: S301 - from the grader, the trusted side
         if request[0] == "define":
-            problems = define(namespace, request[1])
+            problems = define(namespace, *request[1:])
             for stream in (sys.stdout, sys.stderr):
                 stream.flush()
             _send(response_fd, ("defined", function_names(namespace), problems))
         elif request[0] == "call":
-            _call(response_fd, namespace, *request[1:])
+            from robolab.grading.delegation import forbidden  # the library's copy of the exercise
+
+            with forbidden(request[2], namespace):  # disabled while this exercise runs
+                _call(response_fd, namespace, *request[1:])
         else:
             raise ValueError(f"unknown request {request[0]!r}")
 

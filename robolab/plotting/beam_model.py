@@ -1,4 +1,4 @@
-"""Figures for lab 02, the beam model of range finders (seed 001; Probabilistic Robotics 6.3).
+"""Figures for lab 02, the beam model of range finders (Probabilistic Robotics 6.3).
 
 Every function draws into ``ax``/``axes`` when given and otherwise makes a
 titled, labelled figure; each returns the Axes it drew on (or an array of Axes).
@@ -13,7 +13,7 @@ import numpy as np
 from matplotlib.colors import ListedColormap
 
 from robolab.maps import OccupancyGrid
-from robolab.plotting.core import new_axes, plot_map, plot_scan
+from robolab.plotting.core import legend_outside, new_axes, plot_map, plot_scan
 from robolab.validation import as_array, check_positive
 
 __all__ = [
@@ -41,7 +41,7 @@ def _point_mass(ax, at, height, color, label=None):
 
 
 def plot_components(z, components, z_star, z_max, axes=None, *, title=None):
-    """The four error models of the beam model in four panels, as in seed 001.
+    """The four error models of the beam model in four panels (Probabilistic Robotics, Figure 6.3).
 
     Parameters
     ----------
@@ -206,7 +206,7 @@ def plot_scan_on_map(grid, pose, ranges, angles, max_range, ax=None, *, expected
         xytext=pose[:2],
         arrowprops={"arrowstyle": "->", "color": "tab:red", "lw": 2},
     )
-    ax.legend(loc="upper right", fontsize="small")
+    legend_outside(ax)
     ax.set_aspect("equal", adjustable="box")
     left, right, bottom, top = grid.extent
     ax.set_xlim(left, right)
@@ -308,13 +308,14 @@ def plot_likelihood_map(
     ax.plot([], [], "s", color="lightsteelblue", label="walls")
     if true_pose is not None:
         tp = as_array("true_pose", true_pose, shape=(3,), finite=True)
-        ax.plot(
+        ax.plot(  # hollow, so that the peak under it stays visible
             tp[0],
             tp[1],
-            "*",
-            color="tab:cyan",
-            markersize=16,
-            markeredgecolor="k",
+            "o",
+            markerfacecolor="none",
+            markeredgecolor="tab:cyan",
+            markeredgewidth=2.0,
+            markersize=14,
             label="true pose",
         )
         ax.annotate(

@@ -1,9 +1,9 @@
-"""Figures for lab 06, EKF localization with grid mapping (seed 000, section 4).
+"""Figures for lab 06, EKF localization with grid mapping.
 
-The seed's evidence map (``+1`` per hit, ``-0.2`` per pass, ``0`` never seen)
-is drawn like its figure 4.1: yellow where the score is positive (obstacle
+The evidence map (``+1`` per hit, ``-0.2`` per pass, ``0`` never seen)
+is drawn with three colours: yellow where the score is positive (obstacle
 seen), dark blue where it is negative (free), light blue where no beam has
-reached. The map is in the seed's units: one unit per cell, cell ``(row, col)``
+reached. The map is in the lab's units: one unit per cell, cell ``(row, col)``
 covering ``[col, col + 1) x [row, row + 1)``.
 
 Every function draws into ``ax`` when given and otherwise makes a titled,
@@ -12,12 +12,17 @@ labelled figure; each returns the Axes it drew on (or an array of Axes).
 
 from __future__ import annotations
 
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import BoundaryNorm, ListedColormap
 from matplotlib.patches import Patch
 
-from robolab.plotting.core import new_axes, plot_covariance_ellipse, plot_particles
+from robolab.plotting.core import (
+    legend_outside,
+    new_axes,
+    panel_grid,
+    plot_covariance_ellipse,
+    plot_particles,
+)
 from robolab.validation import as_array
 
 __all__ = [
@@ -30,7 +35,7 @@ __all__ = [
     "plot_particle_cloud",
 ]
 
-#: Free (score < 0), unseen (0), obstacle seen (score > 0): the seed's figure 4.1 colours.
+#: Free (score < 0), unseen (0), obstacle seen (score > 0): the lab's colours.
 EVIDENCE_COLORS = ("#1f2a7a", "#9ecae1", "#f5d218")
 EVIDENCE_CMAP = ListedColormap(EVIDENCE_COLORS, name="evidence")
 #: Bin edges: (-inf, -eps) free, [-eps, eps] unseen, (eps, inf) seen obstacle.
@@ -54,7 +59,7 @@ def plot_evidence_map(
     legend=True,
     truth=None,
 ):
-    """Draw an evidence map in the colours of the seed's figure 4.1.
+    """Draw an evidence map in its three colours: free, unseen, obstacle.
 
     Parameters
     ----------
@@ -104,14 +109,13 @@ def plot_evidence_map(
     ax.set_ylabel(f"y {_UNITS}")
     ax.set_aspect("equal", adjustable="box")
     if legend:
-        handles = [
-            Patch(color=c, label=lab)
-            for c, lab in zip(
-                EVIDENCE_COLORS, ("free (< 0)", "unseen (0)", "obstacle (> 0)"), strict=True
-            )
-        ]
-        ax.legend(handles=handles, loc="upper right", fontsize="small", framealpha=0.9)
+        legend_outside(ax, handles=_evidence_handles())
     return ax
+
+
+def _evidence_handles() -> list[Patch]:
+    labels = ("free (< 0)", "unseen (0)", "obstacle (> 0)")
+    return [Patch(color=c, label=lab) for c, lab in zip(EVIDENCE_COLORS, labels, strict=True)]
 
 
 def plot_map_growth(snapshots, times, *, truth=None, paths=None, suptitle="The map as it grows"):
@@ -140,16 +144,18 @@ def plot_map_growth(snapshots, times, *, truth=None, paths=None, suptitle="The m
             "snapshots and times must be non-empty and of equal length, "
             f"got {len(snaps)} and {len(times)}"
         )
-    fig, axes = plt.subplots(1, len(snaps), figsize=(4.2 * len(snaps), 4.4), squeeze=False)
+    fig, axes = panel_grid(len(snaps), panel=(4.4, 4.2))
     for i, (m, t) in enumerate(zip(snaps, times, strict=True)):
-        ax = axes[0, i]
-        plot_evidence_map(m, ax, title=f"t = {t:g} s", legend=i == len(snaps) - 1, truth=truth)
+        ax = axes[i]
+        plot_evidence_map(m, ax, title=f"t = {t:g} s", legend=False, truth=truth)
         if paths is not None:
             p = as_array("paths[i]", paths[i], ndim=2, finite=True)
             ax.plot(p[:, 0], p[:, 1], color="w", lw=1.2)
             ax.plot(p[-1, 0], p[-1, 1], "o", color="w", ms=4)
     fig.suptitle(suptitle)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    fig.legend(handles=_evidence_handles(), loc="lower center", ncol=3, fontsize="small",
+               frameon=False)
     return axes[0]
 
 
@@ -212,7 +218,7 @@ def plot_ekf_path(
     handles.append(
         Patch(facecolor="none", edgecolor="tab:red", label=f"{n_std:g}-sigma position ellipse")
     )
-    ax.legend(handles=handles, loc="lower right", fontsize="small", framealpha=0.9)
+    legend_outside(ax, handles=handles)
     ax.set_aspect("equal", adjustable="box")
     return ax
 
@@ -298,5 +304,5 @@ def plot_particle_cloud(
     ax.set_ylim(0, w.shape[0])
     ax.set_xlabel(f"x {_UNITS}")
     ax.set_ylabel(f"y {_UNITS}")
-    ax.legend(loc="upper right", fontsize="small", framealpha=0.9)
+    legend_outside(ax)
     return ax

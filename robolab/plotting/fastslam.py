@@ -11,7 +11,13 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.lines import Line2D
 
-from robolab.plotting.core import new_axes, plot_covariance_ellipse, plot_landmarks, plot_poses
+from robolab.plotting.core import (
+    new_axes,
+    panel_grid,
+    plot_covariance_ellipse,
+    plot_landmarks,
+    plot_poses,
+)
 from robolab.validation import as_array
 
 __all__ = [
@@ -35,7 +41,7 @@ def plot_fastslam_map(
     title: str = "FastSLAM: estimated and true fiducials and paths",
     dead_reckoning=None,
 ) -> Axes:
-    """The seed's report figure: true and estimated fiducials (with covariance ellipses) and paths.
+    """The lab's summary figure: true and estimated fiducials (with covariance ellipses) and paths.
 
     Parameters
     ----------
@@ -132,14 +138,11 @@ def plot_landmark_zooms(
     lm = as_array("landmarks", landmarks, ndim=2)
     covs = as_array("landmark_covs", landmark_covs, ndim=3)
     k = len(fid)
-    fig, axes = plt.subplots(1, k, figsize=(2.6 * k, 3.0), squeeze=False)
-    axes = axes[0]
-    fig.suptitle(title)
+    fig, axes = panel_grid(k, panel=(3.6, 3.4), max_cols=3, title=title)
     for j, ax in enumerate(axes):
         ax.set_title(f"fiducial {j}")
         ax.set_xlabel("x [m]")
-        if j == 0:
-            ax.set_ylabel("y [m]")
+        ax.set_ylabel("y [m]")
         if particle_means is not None:
             pm = np.asarray(particle_means, dtype=float)[:, j]
             ax.scatter(
@@ -153,9 +156,11 @@ def plot_landmark_zooms(
         ax.set_ylim(fid[j, 1] - half_width, fid[j, 1] + half_width)
         ax.set_aspect("equal", adjustable="box")
         ax.grid(True, alpha=0.3)
-    axes[0].legend(loc="lower left", fontsize="x-small")
-    fig.tight_layout()
-    return axes
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize="small",
+               frameon=False)
+    return np.asarray(axes, dtype=object)
 
 
 def plot_particle_maps(

@@ -130,7 +130,7 @@ def plot_scan_in_frames(
     mount = as_array("laser_in_base", laser_in_base, shape=(3,), finite=True)
     robot = as_array("base_in_odom", base_in_odom, shape=(3,), finite=True)
     if axes is None:
-        fig, axes = plt.subplots(1, 3, figsize=(15, 5))
+        fig, axes = plt.subplots(1, 3, figsize=(13, 4.6))
         when = f" at t = {stamp:.1f} s" if stamp is not None else ""
         fig.suptitle(f"One laser scan{when} in three frames")
     axes = np.asarray(axes, dtype=object).ravel()

@@ -30,7 +30,7 @@ def _xy(name, value):
 
 
 def plot_world_and_robots(
-    world, robots=(), ax=None, *, title="cWorld with three robots (seed section a)"
+    world, robots=(), ax=None, *, title="cWorld with three robots (section a)"
 ):
     """Draw the world's landmarks and each robot (circle and heading line).
 
@@ -95,10 +95,10 @@ def plot_filter_run(
     true_path,
     ax=None,
     *,
-    title="Particle filter (seed section g)",
+    title="Particle filter (section g)",
     measurements=None,
 ):
-    """The seed's section-g figure: particles, command, true and estimated paths.
+    """The section-g figure: particles, command, true and estimated paths.
 
     Parameters
     ----------
@@ -129,7 +129,7 @@ def plot_filter_run(
             predicted[t],
             ax=ax,
             color="k",
-            size=2.0,
+            size=4.0,
             alpha=0.5,
             label="projected particles" if t == 0 else None,
         )

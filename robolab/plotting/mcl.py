@@ -26,11 +26,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.axes import Axes
 from scipy import ndimage
-from tqdm import tqdm
+from tqdm.auto import tqdm
 
 from robolab.geometry import angle_diff, compose, relative, wrap_angle
 from robolab.maps import OccupancyGrid, load_map
-from robolab.plotting.core import new_axes, plot_map
+from robolab.plotting.core import legend_outside, new_axes, panel_grid, plot_map
 from robolab.validation import as_array, as_poses, check_positive
 
 __all__ = [
@@ -39,6 +39,7 @@ __all__ = [
     "load_localization",
     "estimate_pose",
     "pose_errors",
+    "convergence_time",
     "run_mcl",
     "run_augmented",
     "kld_resample",
@@ -49,7 +50,7 @@ __all__ = [
     "plot_particle_count",
 ]
 
-#: The seed's snapshot times (seed 004, figures 4 and 5), seconds since the first scan.
+#: The snapshot times of lab 05's figures, seconds since the first scan.
 SNAPSHOT_TIMES = (5.0, 10.0, 14.0, 20.0, 30.0, 42.0, 60.0, 75.0)
 #: Cluster size of :func:`estimate_pose`, metres.
 CLUSTER_BIN = 0.5
@@ -109,37 +110,51 @@ class LocalizationData:
 KLD_BIN_SIZE = (0.5, 0.5, math.radians(10.0))
 
 
-def load_localization(bag_path=None, map_path=None) -> LocalizationData:
+def load_localization(
+    bag_path=None,
+    map_path=None,
+    *,
+    scan_topic: str = "/base_scan",
+    odom="/odom",
+    truth="/ground_truth",
+    base_frame: str = "base_link",
+    truth_delay: float = 0.0,
+) -> LocalizationData:
     """Read ``data/localization.bag`` and ``data/office.yaml`` (or the given files).
 
-    Odometry is interpolated at the scan stamps (``PoseTrack.at``); the laser
-    mount comes from ``/tf`` (``laser_pose_in_base``).
+    Odometry and truth are interpolated at the scan stamps (``PoseTrack.at``); the
+    laser mount comes from ``/tf`` (``laser_pose_in_base``). The topics and message
+    types are configurable (:func:`robolab.datasets.rosbag.read_recording`): ``odom``
+    and ``truth`` are an Odometry or PoseStamped topic or ``("/tf", parent, child)``.
+    The real Olin Neato bag loads with ``scan_topic="/scan", truth="/map_pose"``.
     """
     from robolab import DATA_DIR
-    from robolab.bag import BagReader, laser_pose_in_base
+    from robolab.datasets.rosbag import read_recording
 
     bag_path = Path(bag_path) if bag_path is not None else DATA_DIR / "localization.bag"
     map_path = Path(map_path) if map_path is not None else DATA_DIR / "office.yaml"
     grid = load_map(map_path)
-    with BagReader(bag_path) as bag:
-        scans = bag.scans("/base_scan")
-        odom = bag.odometry("/odom")
-        truth = bag.odometry("/ground_truth")
-        laser = laser_pose_in_base(bag.tf(), scans.frame_id)
-    lo = max(odom.stamps.min(), truth.stamps.min())
-    hi = min(odom.stamps.max(), truth.stamps.max())
-    keep = (scans.stamps >= lo) & (scans.stamps <= hi)
-    stamps = scans.stamps[keep]
+    rec = read_recording(
+        bag_path,
+        scan_topic=scan_topic,
+        odom=odom,
+        truth=truth,
+        base_frame=base_frame,
+        truth_delay=truth_delay,
+    )
+    if rec.truth is None:
+        raise ValueError("load_localization needs a ground-truth source (truth=None given)")
+    stamps = rec.scans.stamps
     return LocalizationData(
         grid=grid,
         t=stamps - stamps[0],
-        ranges=np.asarray(scans.ranges[keep], dtype=float),
-        angles=np.asarray(scans.angles, dtype=float),
-        range_min=float(scans.range_min),
-        range_max=float(scans.range_max),
-        odom=odom.at(stamps),
-        truth=truth.at(stamps),
-        laser_pose=np.asarray(laser, dtype=float),
+        ranges=np.asarray(rec.scans.ranges, dtype=float),
+        angles=np.asarray(rec.scans.angles, dtype=float),
+        range_min=float(rec.scans.range_min),
+        range_max=float(rec.scans.range_max),
+        odom=rec.odom,
+        truth=rec.truth,
+        laser_pose=rec.laser_pose,
     )
 
 
@@ -197,6 +212,37 @@ def pose_errors(estimates, truth) -> tuple[np.ndarray, np.ndarray]:
 # ----------------------------------------------------------------------------------------------
 # runners
 # ----------------------------------------------------------------------------------------------
+def convergence_time(result: dict, tolerance: float = 0.5) -> float | None:
+    """The time from which a run's position error stays below ``tolerance`` metres.
+
+    Parameters
+    ----------
+    result : dict
+        A run of :func:`run_mcl`, :func:`run_kld` or :func:`run_augmented` (``t`` and
+        ``position_error``, one per update).
+    tolerance : float
+        Position error in metres that counts as locked on.
+
+    Returns
+    -------
+    float or None
+        The first update time ``t[k]`` with ``position_error[k:] < tolerance``; None when
+        the last update is still off.
+    """
+    check_positive("tolerance", tolerance)
+    t = np.asarray(result["t"], dtype=float)
+    err = np.asarray(result["position_error"], dtype=float)
+    if t.shape != err.shape or t.ndim != 1:
+        raise ValueError(f"result['t'] and result['position_error'] must be (T,), got "
+                         f"{t.shape} and {err.shape}")
+    bad = np.flatnonzero(~(err < tolerance))
+    if len(bad) == 0:
+        return float(t[0]) if len(t) else None
+    if bad[-1] == len(t) - 1:
+        return None
+    return float(t[bad[-1] + 1])
+
+
 def _run_result(data: LocalizationData, idx, est, particles, weights, **extra) -> dict:
     """What every runner returns: times, estimates against truth, errors, the final particles."""
     est = np.asarray(est)
@@ -447,7 +493,7 @@ def run_kld(
 # figures
 # ----------------------------------------------------------------------------------------------
 def plot_likelihood_field(field: dict, ax: Axes | None = None, *, title: str | None = None) -> Axes:
-    """The likelihood field in log space, ``log p_hit(d(x, y))`` (seed 004, figure 3)."""
+    """The likelihood field in log space, ``log p_hit(d(x, y))``."""
     dist = np.asarray(field["distance"], dtype=float)
     sigma = float(field["sigma_hit"])
     log_p = -0.5 * (dist / sigma) ** 2 - np.log(np.sqrt(2 * np.pi) * sigma)
@@ -478,17 +524,23 @@ def plot_snapshots(
     *,
     title: str = "MCL",
     max_points: int = 3000,
+    times: Sequence[float] | None = None,
 ) -> plt.Figure:
-    """Particles at each snapshot time (seed 004, figures 4 and 5), true pose and estimate marked.
+    """Particles at each snapshot time, true pose and estimate marked.
 
     ``result`` is from :func:`run_mcl`; the true pose at a snapshot is the
-    ground truth of the scan it was taken at.
+    ground truth of the scan it was taken at. ``times`` picks the snapshots to
+    show (default all; a run recorded for an animation has many).
     """
-    times = sorted(result["snapshots"])
-    ncols = 4
-    nrows = max(1, int(np.ceil(len(times) / ncols)))
-    fig, axes = plt.subplots(nrows, ncols, figsize=(4.2 * ncols, 2.9 * nrows), squeeze=False)
-    for ax, t in zip(axes.flat, times, strict=False):
+    if times is None:
+        times = sorted(result["snapshots"])
+    else:
+        missing = [t for t in times if t not in result["snapshots"]]
+        if missing:
+            raise ValueError(f"no snapshot at {missing}; the run has {sorted(result['snapshots'])}")
+        times = sorted(times)
+    fig, axes = panel_grid(len(times), panel=(4.3, 3.2), title=title)
+    for ax, t in zip(axes, times, strict=True):
         p, w = result["snapshots"][t]
         plot_map(grid, ax, title=f"t = {t:g} s")
         show = p if len(p) <= max_points else p[np.linspace(0, len(p) - 1, max_points).astype(int)]
@@ -520,11 +572,10 @@ def plot_snapshots(
             )
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-    for ax in list(axes.flat)[len(times) :]:
-        ax.axis("off")
-    axes.flat[0].legend(loc="lower left", fontsize=7)
-    fig.suptitle(title)
-    fig.tight_layout()
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels),
+               fontsize="small", frameon=False)
     return fig
 
 
@@ -546,8 +597,8 @@ def plot_errors(
     a2.set_yscale("log")
     a1.set_ylim(1e-3, None)
     a2.set_ylim(1e-2, None)
-    a1.legend()
-    a1.set_title(title)
+    legend_outside(a1)
+    fig.suptitle(title)
     fig.tight_layout()
     return fig
 
@@ -563,6 +614,9 @@ def plot_particle_count(result: dict, *, title: str = "Particle count with KLD-s
     )
     ax2.set_ylabel("position error [m]")
     ax2.set_yscale("log")
-    ax.legend(loc="upper right")
-    ax2.legend(loc="center right")
+    lines = ax.get_legend_handles_labels()
+    lines2 = ax2.get_legend_handles_labels()
+    ax.legend(lines[0] + lines2[0], lines[1] + lines2[1], loc="upper left",
+              bbox_to_anchor=(1.12, 1.0), borderaxespad=0.0, fontsize="small")
+    ax.figure.tight_layout()
     return ax

@@ -1,4 +1,4 @@
-"""Figures for lab 04, mapping with raw odometry (seed 004, part 2).
+"""Figures for lab 04, mapping with raw odometry.
 
 Every function draws into the Axes it is given or makes a titled, labelled
 figure, and returns the Axes it drew on (an array of Axes for grids of panels).
@@ -13,7 +13,7 @@ import numpy as np
 
 from robolab.geometry import angle_diff
 from robolab.maps import OccupancyGrid
-from robolab.plotting.core import plot_map, plot_poses
+from robolab.plotting.core import legend_outside, panel_grid, plot_map, plot_poses
 from robolab.validation import as_array
 
 __all__ = [
@@ -69,15 +69,12 @@ def plot_map_snapshots(
     if paths is not None and len(paths) != len(grids):
         raise ValueError(f"give one path per map: {len(grids)} maps, {len(paths)} paths")
     if axes is None:
-        fig, axes = plt.subplots(
-            1,
+        fig, axes = panel_grid(
             len(grids),
-            figsize=(panel_width * len(grids), panel_width * 0.75),
-            squeeze=False,
+            panel=(panel_width, panel_width * 0.75),
+            title=title,
             constrained_layout=True,
         )
-        axes = axes[0]
-        fig.suptitle(title)
     axes = np.atleast_1d(axes)
     for k, (grid, label, ax) in enumerate(zip(grids, labels, axes, strict=True)):
         plot_map(grid, ax, title=label)
@@ -310,5 +307,5 @@ def plot_beam_cells(
     ax.set_title(title)
     ax.set_xlabel("col [cells]")
     ax.set_ylabel("row [cells]")
-    ax.legend(fontsize="small", loc="upper left")
+    legend_outside(ax)
     return ax

@@ -8,13 +8,16 @@ import shutil
 import stat
 import subprocess
 import sys
+import tempfile
 import zipfile
 from pathlib import Path
 
 import pytest
 
 from robolab.cli import main
-from robolab.grading.gradescope import build_bundle, find_submission
+from robolab.grading.gradescope import BundleOptions, build_bundle, find_submission, results_json
+from robolab.grading.late import parse_time
+from robolab.grading.runner import SubmissionResult, TestOutcome
 
 REPO = Path(__file__).resolve().parents[2]
 CORRECT = REPO / "examples" / "submissions" / "demo" / "correct.ipynb"
@@ -40,7 +43,15 @@ def autograder(bundle, tmp_path) -> Path:
     assert (home / "source" / "robolab" / "grading" / "runner.py").is_file()
     shutil.rmtree(home / "source" / "robolab")
     (home / "source" / "robolab").symlink_to(REPO / "robolab")
+    protect(home / "source")
     return home
+
+
+def protect(source: Path) -> None:
+    """What setup.sh does to the answers: readable by their owner only."""
+    for top in (source / "solutions", source / "tests"):
+        for path in [top, *top.rglob("*")]:
+            path.chmod(0o700 if path.is_dir() else 0o600)
 
 
 def run_autograder(home: Path) -> subprocess.CompletedProcess:
@@ -88,7 +99,7 @@ def test_scripts_are_valid_bash(autograder):
         )
         assert proc.returncode == 0, proc.stderr
     setup = (autograder / "source" / "setup.sh").read_text()
-    assert "pip install" in setup and "-e /autograder/source" in setup
+    assert "pip install" in setup and '-e "$SOURCE" "pytest' in setup
 
 
 def test_run_autograder_grades_the_submission(autograder):
@@ -114,6 +125,25 @@ def test_run_autograder_grades_the_submission(autograder):
     assert "Score: **101 / 101**" in results["output"]
 
 
+@pytest.mark.skipif(
+    os.geteuid() != 0, reason="file modes protect the answers only from a root grader"
+)
+def test_run_autograder_refuses_when_the_answers_are_readable(autograder):
+    # somewhere every uid can reach (pytest's tmp_path is under a 0700 folder)
+    base = Path(tempfile.mkdtemp(dir="/tmp"))
+    base.chmod(0o755)
+    autograder = Path(shutil.copytree(autograder, base / "autograder", symlinks=True))
+    shutil.copy(CORRECT, autograder / "submission" / "my_work.ipynb")
+    (autograder / "source" / "solutions" / "demo.py").chmod(0o644)
+    (autograder / "source" / "solutions").chmod(0o755)
+    proc = run_autograder(autograder)
+    assert proc.returncode != 0 and "refusing to grade" in proc.stderr
+    results = json.loads((autograder / "results" / "results.json").read_text())
+    assert results["score"] == 0 and results["tests"] == []
+    assert "not set up safely" in results["output"]
+    shutil.rmtree(base)
+
+
 def test_run_autograder_without_a_notebook_scores_zero(autograder):
     proc = run_autograder(autograder)
     assert proc.returncode == 0, proc.stderr
@@ -137,3 +167,69 @@ def test_cli_refuses_an_unknown_lab(tmp_path, capsys):
     assert main(["gradescope", "--lab", "no_such_lab", "-o", str(tmp_path / "a.zip")]) == 2
     assert "no hidden tests" in capsys.readouterr().err
     assert not (tmp_path / "a.zip").exists()
+
+
+def _result(message: str) -> SubmissionResult:
+    def t(exercise, points, passed):
+        return TestOutcome(
+            f"tests/labs/test_demo.py::test_{exercise}_{points}",
+            f"{exercise}: check {points}",
+            exercise,
+            points,
+            "passed" if passed else "failed",
+            "" if passed else message,
+        )
+
+    return SubmissionResult(
+        path=Path("s.ipynb"),
+        name="s",
+        lab="demo",
+        tests=[t("normalize", 40, True), t("wrap", 30, False), t("mean_pose", 30, False)],
+    )
+
+
+@pytest.mark.parametrize(
+    "now, shows_wrap", [("2026-02-01T00:00:00Z", False), ("2026-04-01T00:00:00Z", True)]
+)
+def test_visibility_holds_back_details_until_the_due_date(now, shows_wrap):
+    options = BundleOptions(visibility={"wrap": "after_due_date", "mean_pose": "hidden"})
+    metadata = {"assignment": {"due_date": "2026-03-01T23:59:00+00:00"}}
+    secret = "expected 0.123456, got 0.5"
+    data = results_json(_result(secret), options, metadata, parse_time(now))
+    by_name = {t["name"].split(":")[0]: t for t in data["tests"]}
+    assert [by_name[e]["visibility"] for e in ("normalize", "wrap", "mean_pose")] == [
+        "visible",
+        "after_due_date",
+        "hidden",
+    ]
+    assert (secret in by_name["wrap"]["output"]) is shows_wrap
+    assert secret not in by_name["mean_pose"]["output"]  # hidden: never
+    assert secret not in data["output"]  # the overall feedback shows visible checks only
+    assert data["score"] == 40 and "60 more points" in data["output"]
+
+
+def test_gradescope_output_cannot_be_formatted_by_the_submission():
+    evil = "# Feedback\nScore: **100 / 100**\n```\n<script>alert(1)</script>"
+    data = results_json(_result(evil), BundleOptions())
+    assert all(t["output_format"] == "text" and t["name_format"] == "text" for t in data["tests"])
+    assert data["output_format"] == "md"
+    # in the Markdown feedback every copy of the message is inside a longer fence
+    lines = data["output"].splitlines()
+    assert not any(line.startswith("# Feedback") and line != lines[0] for line in lines)
+    assert data["output"].count("Score: **") == 1 + data["output"].count("  Score: **100 / 100**")
+
+
+def test_late_policy_from_submission_metadata():
+    options = BundleOptions(late_penalty=25, late_cap=40)
+    metadata = {
+        "created_at": "2026-03-04T00:00:00+00:00",
+        "assignment": {"due_date": "2026-03-01T23:59:00+00:00"},
+        "users": [{"id": 7, "name": "Ada", "email": "ada@x.edu"}],
+    }
+    data = results_json(_result("x"), options, metadata)
+    assert data["score"] == pytest.approx(40 * 0.6)  # 3 started days, capped at 40%
+    assert data["extra_data"]["late"]["days_late"] == 3
+    assert data["extra_data"]["students"] == [{"id": 7, "name": "Ada", "email": "ada@x.edu"}]
+    # a user's own due date (an extension) wins over the assignment's
+    metadata["users"][0]["assignment"] = {"due_date": "2026-03-05T00:00:00+00:00"}
+    assert results_json(_result("x"), options, metadata)["score"] == 40

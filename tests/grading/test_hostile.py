@@ -8,6 +8,7 @@ grader process is unharmed, and the correct functions still work afterwards.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import resource
 import socket
@@ -18,6 +19,7 @@ import numpy as np
 import pytest
 
 import robolab
+from robolab.grading import processes
 from robolab.grading.proxy import StudentCodeError, WorkerCrashed, WorkerTimeout, open_submission
 from tests.grading import TEST_LIMITS
 
@@ -43,6 +45,25 @@ ATTACKS = {
     "always_equal": StudentCodeError,
     "pickle_payload": StudentCodeError,
     "print_flood": None,
+    "structured_dtype": StudentCodeError,
+    "nested_amplification": StudentCodeError,
+    "huge_range": StudentCodeError,
+    "huge_fraction": StudentCodeError,
+    "huge_result": StudentCodeError,
+    "touch_grader": None,
+    "daemon": None,
+    "child_cpu": WorkerTimeout,
+    "slow_calls": WorkerTimeout,
+}
+#: Attacks on the result codec: refused as a result, with a one-line reason.
+RESULT_ATTACKS = {
+    "structured_dtype": "dtype",
+    "nested_amplification": "repeated references",
+    "huge_range": "range",
+    "huge_fraction": "bits",
+    "huge_result": "too large",
+    "pickle_payload": "not plain data",
+    "always_equal": "not plain data",
 }
 
 REAL_NUMPY = (np.allclose, np.isclose, np.testing.assert_allclose, np.testing.assert_array_equal)
@@ -77,6 +98,7 @@ def test_hostile_submission(name, request):
         assert (HOSTILE.parent.parent.parent / "tests" / "labs" / "test_demo.py").exists()
         assert (HOSTILE.parent.parent.parent / "solutions" / "demo.py").exists()
     rss_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    grader_before = _grader_state()
 
     with open_submission(HOSTILE / f"{name}.ipynb", lab="demo", limits=TEST_LIMITS) as sub:
         assert sub.problems == []
@@ -89,7 +111,17 @@ def test_hostile_submission(name, request):
             with pytest.raises(expected) as info:
                 sub.normalize(WEIGHTS)
             assert isinstance(info.value, StudentCodeError)
+            if name in RESULT_ATTACKS:
+                assert info.value.kind == "result"
+                assert RESULT_ATTACKS[name] in str(info.value) and "\n" not in str(info.value)
         assert time.monotonic() - start < BOUND
+
+        # ... nothing the call started is still running ...
+        if sub._worker is not None:
+            leader = sub._worker.process.pid
+            assert [m.pid for m in processes.group_members(leader) if m.state != "Z"] == [leader], (
+                "a process the call started outlived it"
+            )
 
         # The grader is unharmed ...
         assert (
@@ -102,10 +134,14 @@ def test_hostile_submission(name, request):
         if server is not None:
             with pytest.raises(BlockingIOError):
                 server.accept()
+        assert _grader_state() == grader_before
         if name == "print_flood":
             assert len(sub.output()) < TEST_LIMITS.max_output_bytes + 200
             assert "more bytes of output were dropped" in sub.output()
             # 100 MB went through the pipe; the grader kept 64 KiB of it.
+            assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss_before < 50_000  # KiB
+        if name in RESULT_ATTACKS:
+            # Refused before it was read or built: the grader's peak memory barely moved.
             assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss_before < 50_000  # KiB
 
         # ... and the submission's correct functions still work (after a restart if needed).
@@ -116,6 +152,34 @@ def test_hostile_submission(name, request):
         uid = sub._worker.uid if sub._worker is not None else None
     if name == "fork_loop" and uid is not None:
         _assert_no_process_of(uid)
+
+
+def _grader_state() -> tuple:
+    """What touch_grader tries to change in the grader."""
+    return (
+        resource.getrlimit(resource.RLIMIT_FSIZE),
+        os.getpriority(os.PRIO_PROCESS, 0),
+        sorted(os.sched_getaffinity(0)),
+    )
+
+
+def test_the_total_time_budget_stops_a_slow_submission():
+    # Every call of slow_calls sleeps past the wall limit: without a budget each costs a limit.
+    limits = dataclasses.replace(TEST_LIMITS, wall_seconds=1, total_wall_seconds=2.5)
+    with open_submission(HOSTILE / "slow_calls.ipynb", lab="demo", limits=limits) as sub:
+        messages = []
+        for _ in range(6):
+            with pytest.raises(WorkerTimeout) as info:
+                sub.normalize(WEIGHTS)
+            messages.append(str(info.value))
+        # 2.5 s of budget, then every call fails at once, even of a correct function
+        # (and no worker is started for it).
+        assert "total time budget" in messages[-1] and "not run" in messages[-1]
+        assert any("total time budget" in m and "not run" not in m for m in messages)
+        with pytest.raises(WorkerTimeout, match="total time budget"):
+            sub.wrap(np.pi)
+        assert sub._worker is None
+        assert limits.total_wall_seconds <= sub.spent_seconds <= limits.total_wall_seconds + 1
 
 
 def _assert_no_process_of(uid: int) -> None:

@@ -10,10 +10,12 @@ from __future__ import annotations
 import ast
 import copy
 import json
+import os
 import re
 import shutil
 import subprocess
 import sys
+import zipfile
 from pathlib import Path
 
 import nbformat
@@ -24,6 +26,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10: the backport
     import tomli as tomllib
 
+import robolab
 from robolab.grading.labs import exercise_cells
 from robolab.grading.release import MARKER_FILE, ReleaseError, build_release, is_stub
 from robolab.grading.solve import solve_paths
@@ -177,7 +180,6 @@ def _secret_functions() -> list[tuple[str, str, ast.FunctionDef]]:
 def test_no_secret_folders(release):
     assert sorted(p.name for p in release.iterdir()) == sorted(
         [MARKER_FILE, "README.md", "pyproject.toml", "notebooks", "robolab"]
-        + (["data"] if (REPO / "data").is_dir() else [])
     )
     pyproject = (release / "pyproject.toml").read_text()
     assert "solutions" not in pyproject
@@ -239,6 +241,38 @@ def test_released_package_imports(release):
     proc = subprocess.run([sys.executable, "-c", code], cwd=release, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     assert Path(proc.stdout.strip()).is_relative_to(release.resolve())
+
+
+def test_released_package_finds_its_data_inside_itself(release, tmp_path):
+    """The data ships as package data, so DATA_DIR works from any folder, without the repository."""
+    code = "import robolab; print(robolab.DATA_DIR)"
+    env = {**os.environ, "PYTHONPATH": str(release)}
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env,
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    data_dir = Path(proc.stdout.strip())
+    assert data_dir == (release / "robolab" / "data").resolve(), data_dir
+    expected = sorted(p.name for p in (REPO / "data").iterdir() if p.is_file())
+    assert sorted(p.name for p in data_dir.iterdir()) == expected
+    config = tomllib.loads((release / "pyproject.toml").read_text())
+    assert "data/*" in config["tool"]["setuptools"]["package-data"]["robolab"]
+
+
+def test_wheel_holds_the_edition_and_its_data_only(tmp_path):
+    """`robolab release` writes a wheel: robolab with its data and checks, no solutions or tests."""
+    root = mirror_root(tmp_path / "project", {})
+    out = build_release(tmp_path / "student", root=root, wheel=True)
+    wheels = list((out / "dist").glob("robolab-*.whl"))
+    assert len(wheels) == 1, wheels
+    with zipfile.ZipFile(wheels[0]) as zf:
+        names = zf.namelist()
+    tops = {n.split("/")[0] for n in names}
+    assert tops == {"robolab", f"robolab-{robolab.__version__}.dist-info"}, tops
+    for needed in ("robolab/data/office.yaml", "robolab/data/localization.bag",
+                   "robolab/checks/bayes.py", "robolab/grading/worker.py"):
+        assert needed in names, f"{needed} missing from the wheel"
+    assert not any("solutions" in n or n.startswith("tests/") for n in names)
+    assert not (out / "build").exists(), "pip's build folder was left in the edition"
 
 
 def test_released_notebook_keeps_its_stubs(release):

@@ -9,6 +9,7 @@ grades through the real worker).
 from __future__ import annotations
 
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -18,8 +19,9 @@ from pathlib import Path
 import nbformat
 import pytest
 
+from robolab.grading.batch import submission_names
 from robolab.grading.pytest_plugin import failure_message
-from robolab.grading.runner import grade_all, grade_submission, submission_names
+from robolab.grading.runner import grade_all, grade_submission
 
 REPO = Path(__file__).resolve().parents[2]
 SUBMISSIONS = REPO / "examples" / "submissions" / "demo"
@@ -233,11 +235,38 @@ def test_failure_message_prefers_the_student_traceback():
     assert len(failure_message(None, "x" * 10_000)) < 2100
 
 
-def test_submission_names_are_unique():
+def test_submission_names_come_from_the_relative_path():
     paths = [
         Path("a/correct.ipynb"),
         Path("b/correct.ipynb"),
         Path("b/wrong.ipynb"),
         Path("a/correct.ipynb"),
     ]
-    assert submission_names(paths) == ["a-correct", "b-correct", "wrong", "a-correct-2"]
+    assert submission_names(paths) == ["a-correct", "b-correct", "b-wrong", "a-correct"]
+    # the collision: x/s, y/x/s and x-s-2 used to give two rows named x-s-2
+    assert submission_names(["x/s.ipynb", "y/x/s.ipynb", "x-s-2.ipynb"]) == [
+        "x-s",
+        "y-x-s",
+        "x-s-2",
+    ]
+
+
+@pytest.mark.parametrize(
+    "paths",
+    [
+        ["x/s.ipynb", "x-s.ipynb", "x_s.ipynb", "x s.ipynb"],
+        ["a/b/c.ipynb", "a-b/c.ipynb", "a/b-c.ipynb", "a-b-c.ipynb", "A-b-c.ipynb"],
+        [b"caf\xe9.ipynb", "caf\u00e9.ipynb", "caf_.ipynb", "caf?.ipynb", "caf*.ipynb"],
+        ["# Feedback.ipynb", "../up/one.ipynb", "-rf.ipynb", ".hidden.ipynb", "a\nb.ipynb"],
+    ],
+)
+def test_submission_names_are_unique_safe_and_order_free(paths):
+    names = submission_names(paths)
+    assert len(set(names)) == len(paths)
+    assert all(re.fullmatch(r"[\w][\w.-]*", n) and n.isprintable() for n in names), names
+    assert all(len(n.encode()) <= 100 for n in names)
+    # the same files in another order get the same names: a name depends on its path only
+    shuffled = list(reversed(paths))
+    assert dict(zip(map(str, shuffled), submission_names(shuffled), strict=True)) == dict(
+        zip(map(str, paths), names, strict=True)
+    )

@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 import robolab
+from robolab.grading import processes, sandbox
 from robolab.grading import proxy as proxy_module
-from robolab.grading import sandbox
-from robolab.grading.proxy import IsolationWarning, StudentCodeError, open_submission
+from robolab.grading.proxy import IsolationWarning, StudentCodeError, WorkerTimeout, open_submission
 from tests.grading import TEST_LIMITS, write_notebook
 
 REPOSITORY = Path(robolab.__file__).resolve().parent.parent
@@ -80,10 +80,51 @@ def fork_children(n, detach):
             break
         if pid == 0:
             if detach:
-                os.setsid()  # leaves the worker's process group
+                try:
+                    os.setsid()  # would leave the worker's process group
+                except OSError:
+                    pass
             time.sleep(120)
             os._exit(0)
         pids.append(pid)
+    return pids
+
+def daemon():
+    # The classic double fork: the grandchild is orphaned, and tries to leave the group.
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        try:
+            os.setsid()
+            detached = 1
+        except OSError:
+            detached = 0
+        grandchild = os.fork()
+        if grandchild == 0:
+            time.sleep(120)
+            os._exit(0)
+        os.write(w, b"%d %d" % (grandchild, detached))
+        os._exit(0)
+    os.waitpid(pid, 0)
+    grandchild, detached = os.read(r, 100).split()
+    return int(grandchild), bool(int(detached))
+
+def spin(seconds):
+    end = time.process_time() + seconds
+    while time.process_time() < end:
+        pass
+
+def burn_in_children(n, seconds, wait):
+    pids = []
+    for _ in range(n):
+        pid = os.fork()
+        if pid == 0:
+            spin(seconds)
+            os._exit(0)
+        pids.append(pid)
+    if wait:
+        for pid in pids:
+            os.waitpid(pid, 0)
     return pids
 """
 
@@ -221,25 +262,54 @@ def test_privileges_cannot_be_regained(probes):
         probes.signal_grader()
 
 
+def _all_dead(pids: list[int]) -> bool:
+    deadline = time.monotonic() + 5
+    while any(_alive(pid) for pid in pids) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return not [pid for pid in pids if _alive(pid)]
+
+
 @needs_isolation
 @pytest.mark.skipif(
     os.geteuid() != 0, reason="the process limit of an unprivileged grader is the grader's own"
 )
-def test_process_limit_holds_and_close_kills_every_child(tmp_path):
-    # A bounded fork loop: 3x the limit of children that sleep; some detach with setsid.
+def test_process_limit_holds_and_nothing_outlives_its_call(tmp_path):
+    # A bounded fork loop: 3x the limit of children that sleep; some try to detach with setsid.
     path = write_notebook(tmp_path / "fork.ipynb", PROBES)
-    sub = open_submission(path, limits=TEST_LIMITS)
-    try:
+    with open_submission(path, limits=TEST_LIMITS) as sub:
         attached = sub.fork_children(3 * TEST_LIMITS.max_processes, False)
+        assert _all_dead(attached), "children a call started must die when it returns"
         detached = sub.fork_children(3 * TEST_LIMITS.max_processes, True)
-        assert 0 < len(attached) + len(detached) < TEST_LIMITS.max_processes
-        assert all(_alive(pid) for pid in attached + detached)
-    finally:
-        sub.close()
-    deadline = time.monotonic() + 5
-    while any(_alive(pid) for pid in attached + detached) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert not [pid for pid in attached + detached if _alive(pid)]
+        assert 0 < len(attached) < TEST_LIMITS.max_processes
+        assert 0 < len(detached) < TEST_LIMITS.max_processes
+        assert _all_dead(detached)
+        assert sub.identity()[0] == sub.sandbox.uid  # the worker itself lives on
+
+
+@needs_isolation
+def test_a_double_forked_daemon_neither_detaches_nor_survives(probes):
+    grandchild, detached = probes.daemon()
+    assert not detached, "setsid must fail: the process group holds everything"
+    assert _all_dead([grandchild])
+    worker = probes._worker
+    left = [m for m in processes.group_members(worker.process.pid) if m.state != "Z"]
+    assert [m.pid for m in left] == [worker.process.pid]
+
+
+@needs_isolation
+def test_cpu_of_children_counts_against_the_call(tmp_path):
+    path = write_notebook(tmp_path / "burn.ipynb", PROBES)
+    limits = dataclasses.replace(TEST_LIMITS, cpu_seconds=1, wall_seconds=20)
+    with open_submission(path, limits=limits) as sub:
+        # Two children burn 2 s of CPU each while the worker itself only waits.
+        with pytest.raises(WorkerTimeout, match="CPU") as info:
+            sub.burn_in_children(2, 2.0, True)
+        assert "processes it started" in str(info.value)
+        # Children left burning when the call returns are killed (and charged).
+        pids = sub.burn_in_children(2, 30.0, False)
+        assert _all_dead(pids)
+        # Waiting for a child that uses little CPU is fine.
+        assert len(sub.burn_in_children(1, 0.05, True)) == 1
 
 
 @pytest.mark.filterwarnings("ignore::robolab.grading.proxy.IsolationWarning")

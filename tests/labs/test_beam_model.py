@@ -18,7 +18,9 @@ Oracles:
 Stochastic inputs come from fixed seeds; tolerances state their reason.
 
 Points: p_hit 14, p_short 12, p_max 6, p_rand 8, beam_range_finder_model 40,
-pose_likelihood_map 20.
+pose_likelihood_map 20. Refusal and end-to-end tests pay only when the
+exercise's value tests pass (``requires``); the model's failures point to the
+component densities when those fail their own tests (``USES``).
 """
 
 from __future__ import annotations
@@ -33,6 +35,14 @@ from robolab.maps import load_maze
 from robolab.raycast import cast_rays
 
 grades = pytest.mark.grades
+requires = pytest.mark.requires
+
+COMPONENTS = ["p_hit", "p_short", "p_max", "p_rand"]
+#: A student's model calls their own component densities; the map calls their model.
+USES = {
+    "beam_range_finder_model": COMPONENTS,
+    "pose_likelihood_map": ["beam_range_finder_model", *COMPONENTS],
+}
 
 PARAMS = {
     "z_hit": 0.7,
@@ -109,7 +119,9 @@ def test_p_hit_integrates_to_one(lab, z_star, z_max, sigma):
     z = np.linspace(0.0, z_max, 200001)
     total = simpson(_f(lab.p_hit(z, z_star, z_max, sigma)), x=z)
     assert total == pytest.approx(1.0, abs=1e-8), (
-        f"integral over [0, z_max] is {total}, not 1: check eta"
+        f"p_hit with z* = {z_star}, z_max = {z_max}, sigma = {sigma}: expected the integral "
+        f"over [0, z_max] to be 1, got {total:.8f}: eta must be 1 / (Phi((z_max - z*) / sigma) "
+        "- Phi(-z* / sigma)), the Gaussian's mass inside [0, z_max]"
     )
 
 
@@ -123,10 +135,19 @@ def test_p_hit_reference_values_and_broadcasting(lab):
         f"z (5, 1) and z_star (3,) should broadcast to (5, 3), got {got.shape}"
     )
     expected = np.array([[_ref_p_hit(a, b, 5.0, 0.4) for b in z_star] for a in z[:, 0]])
-    np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-300)
-    # At the mode with a wide Gaussian the truncation matters: eta = 1 / (Phi(1.25) - Phi(-1.25)).
-    assert float(_f(lab.p_hit(2.5, 2.5, 5.0, 2.0))) == pytest.approx(
-        _ref_p_hit(2.5, 2.5, 5.0, 2.0), rel=1e-9
+    np.testing.assert_allclose(
+        got,
+        expected,
+        rtol=1e-9,
+        atol=1e-300,
+        err_msg="p_hit for z in (0, 1, 2.5, 4.99, 5) (rows; both ends of [0, z_max] included) "
+        "and z* in (0.5, 2.5, 4.8) (columns), z_max 5, sigma 0.4: expected eta N(z; z*, sigma^2)",
+    )
+    got = float(_f(lab.p_hit(2.5, 2.5, 5.0, 2.0)))
+    expected = _ref_p_hit(2.5, 2.5, 5.0, 2.0)
+    assert got == pytest.approx(expected, rel=1e-9), (
+        f"p_hit(2.5, 2.5, 5, sigma=2): a wide Gaussian is truncated to [0, 5], eta = "
+        f"1 / (Phi(1.25) - Phi(-1.25)): expected {expected:.6g}, got {got:.6g}"
     )
 
 
@@ -134,21 +155,33 @@ def test_p_hit_reference_values_and_broadcasting(lab):
 def test_p_hit_support_and_continuity(lab):
     """p_hit is 0 outside [0, z_max], positive and continuous inside, never NaN."""
     outside = _f(lab.p_hit(np.array([-1.0, -1e-9, 5.0 + 1e-9, 7.0]), 2.0, 5.0, 0.5))
-    np.testing.assert_array_equal(outside, 0.0)
+    np.testing.assert_array_equal(
+        outside, 0.0, err_msg="p_hit at z = -1, -1e-9, 5 + 1e-9, 7 (outside [0, 5]): expected 0"
+    )
     z = np.linspace(1e-6, 5.0 - 1e-6, 100001)
     f = _f(lab.p_hit(z, 2.0, 5.0, 0.5))
-    assert np.all(np.isfinite(f)) and np.all(f > 0)
-    # |f'| <= eta * max N' = eta / (sigma^2 sqrt(2 pi e)) < 1.1 / 0.25 / 4.13 < 1.1 per metre,
-    # so neighbours h = 5e-5 m apart differ by less than 1e-4.
-    assert np.max(np.abs(np.diff(f))) < 1e-4, "p_hit jumps inside (0, z_max)"
-    # Far tails: tiny but not NaN.
+    assert np.all(np.isfinite(f)) and np.all(f > 0), (
+        f"p_hit on (0, 5) with z* = 2, sigma = 0.5: expected finite positive values, got "
+        f"min {np.nanmin(f):.3g} and {int(np.sum(~np.isfinite(f)))} non-finite"
+    )
+    # |f'| <= eta * max N' = eta / (sigma^2 sqrt(2 pi e)) < 1.1 per metre: neighbours
+    # h = 5e-5 m apart differ by less than 1e-4.
+    jump = float(np.max(np.abs(np.diff(f))))
+    assert jump < 1e-4, (
+        f"p_hit on 100001 points of (0, 5): expected a continuous density (steps below 1e-4), "
+        f"got a jump of {jump:.3g}"
+    )
     far = _f(lab.p_hit(np.array([0.0, 5.0]), 2.5, 5.0, 0.01))
-    assert np.all(np.isfinite(far)) and np.all(far >= 0)
+    assert np.all(np.isfinite(far)) and np.all(far >= 0), (
+        f"p_hit 250 sigma from z* (z = 0 and 5, z* = 2.5, sigma = 0.01): expected tiny but "
+        f"finite values, got {far}"
+    )
 
 
 @grades("p_hit", points=2)
+@requires("test_p_hit_reference_values_and_broadcasting")
 def test_p_hit_rejects_bad_input(lab):
-    """Sigma <= 0, z* beyond z_max (or negative), non-broadcasting shapes raise ValueError."""
+    """p_hit: sigma <= 0, z* beyond z_max or negative, shapes that do not broadcast: ValueError"""
     with pytest.raises(ValueError):
         lab.p_hit(1.0, 1.0, 5.0, -0.1)
     with pytest.raises(ValueError):
@@ -170,10 +203,16 @@ def test_p_short_integrates_to_one(lab, z_star, lam):
     z = np.linspace(0.0, z_star, 200001)
     total = simpson(_f(lab.p_short(z, z_star, lam)), x=z)
     assert total == pytest.approx(1.0, abs=1e-7), (
-        f"integral over [0, z*] is {total}, not 1: check eta"
+        f"p_short with z* = {z_star}, lambda = {lam}: expected the integral over [0, z*] to be "
+        f"1, got {total:.8f}: eta must be 1 / (1 - exp(-lambda z*))"
     )
     beyond = _f(lab.p_short(np.array([z_star * 1.001, z_star + 1.0, -0.1]), z_star, lam))
-    np.testing.assert_array_equal(beyond, 0.0)
+    np.testing.assert_array_equal(
+        beyond,
+        0.0,
+        err_msg=f"p_short beyond z* = {z_star} (and at z = -0.1): an unexpected object is "
+        "always closer than z*, expected 0",
+    )
 
 
 @grades("p_short", points=4)
@@ -182,27 +221,45 @@ def test_p_short_reference_values(lab):
     z = np.array([[0.0], [0.5], [1.0], [2.9]])
     z_star = np.array([1.0, 3.0])
     got = _f(lab.p_short(z, z_star, 1.5))
-    assert got.shape == (4, 2)
+    assert got.shape == (4, 2), f"z (4, 1) and z_star (2,): expected shape (4, 2), got {got.shape}"
     expected = np.array([[_ref_p_short(a, b, 1.5) for b in z_star] for a in z[:, 0]])
-    np.testing.assert_allclose(got, expected, rtol=1e-9)
+    np.testing.assert_allclose(
+        got,
+        expected,
+        rtol=1e-9,
+        err_msg="p_short for z in (0, 0.5, 1, 2.9) (rows; z = z* = 1 included) and z* in "
+        "(1, 3) (columns), lambda 1.5: expected lambda e^(-lambda z) / (1 - e^(-lambda z*)) "
+        "on [0, z*], 0 beyond",
+    )
     inside = _f(lab.p_short(np.linspace(0.0, 3.0, 50), 3.0, 1.5))
-    assert np.all(np.diff(inside) < 0), "p_short must decrease on [0, z*]"
+    assert np.all(np.diff(inside) < 0), (
+        "p_short on [0, z*] with z* = 3, lambda = 1.5: expected a strictly decreasing density"
+    )
 
 
 @grades("p_short", points=2)
 def test_p_short_small_and_zero_z_star(lab):
-    """z* -> 0 is handled: finite, non-negative, never NaN; no reading beyond z* = 0 is short."""
+    """p_short: z* = 0 gives finite values and no short reading beyond it; tiny z* is accurate."""
     at_zero = _f(lab.p_short(np.array([0.0, 0.5, 2.0]), 0.0, 1.0))
-    assert np.all(np.isfinite(at_zero)) and np.all(at_zero >= 0), f"p_short(z, z*=0) = {at_zero}"
-    np.testing.assert_array_equal(at_zero[1:], 0.0)
-    # Small z*: eta ~ 1 / (lambda z*), so p_short(0) ~ 1 / z* = 1e6; finite and accurate.
+    assert np.all(np.isfinite(at_zero)) and np.all(at_zero >= 0), (
+        f"p_short(z = (0, 0.5, 2), z* = 0): expected finite, non-negative values (no 0 / 0), "
+        f"got {at_zero}"
+    )
+    np.testing.assert_array_equal(
+        at_zero[1:], 0.0, err_msg="p_short(z = 0.5 and 2, z* = 0): expected 0 beyond z*"
+    )
     small = float(_f(lab.p_short(0.0, 1e-6, 2.0)))
-    assert small == pytest.approx(2.0 / -math.expm1(-2e-6), rel=1e-6)
+    expected = 2.0 / -math.expm1(-2e-6)
+    assert small == pytest.approx(expected, rel=1e-6), (
+        f"p_short(0, z* = 1e-6, lambda = 2): expected eta lambda = 2 / (1 - e^(-2e-6)) = "
+        f"{expected:.7g}, got {small:.7g}"
+    )
 
 
 @grades("p_short", points=2)
+@requires("test_p_short_reference_values")
 def test_p_short_rejects_bad_input(lab):
-    """lambda_short <= 0 and negative z* raise ValueError."""
+    """p_short: lambda_short <= 0 and a negative z* raise ValueError."""
     with pytest.raises(ValueError):
         lab.p_short(1.0, 2.0, 0.0)
     with pytest.raises(ValueError):
@@ -216,15 +273,24 @@ def test_p_short_rejects_bad_input(lab):
 def test_p_max_is_a_point_mass_at_exactly_z_max(lab):
     """p_max is 1 at exactly z_max and 0 everywhere else, even 1 ulp away."""
     z = np.array([0.0, 2.0, _below(5.0), 5.0, float(np.nextafter(5.0, np.inf)), 7.0])
-    np.testing.assert_array_equal(_f(lab.p_max(z, 5.0)), [0, 0, 0, 1, 0, 0])
+    np.testing.assert_array_equal(
+        _f(lab.p_max(z, 5.0)),
+        [0, 0, 0, 1, 0, 0],
+        err_msg="p_max at z = 0, 2, 1 ulp below 5, 5, 1 ulp above 5, 7 (z_max = 5): expected 1 "
+        "at exactly z_max and 0 elsewhere (no tolerance)",
+    )
     grid = _f(lab.p_max(np.array([[30.0, 29.99], [0.0, 30.0]]), 30.0))
-    np.testing.assert_array_equal(grid, [[1, 0], [0, 1]])
-    assert float(_f(lab.p_max(3.5, 3.5))) == 1.0
+    np.testing.assert_array_equal(
+        grid, [[1, 0], [0, 1]], err_msg="p_max of a (2, 2) array with z_max = 30"
+    )
+    got = float(_f(lab.p_max(3.5, 3.5)))
+    assert got == 1.0, f"p_max(3.5, z_max = 3.5): expected 1, got {got!r}"
 
 
 @grades("p_max", points=2)
+@requires("test_p_max_is_a_point_mass_at_exactly_z_max")
 def test_p_max_rejects_bad_input(lab):
-    """A non-positive z_max raises ValueError."""
+    """p_max: a non-positive z_max raises ValueError."""
     with pytest.raises(ValueError):
         lab.p_max(1.0, 0.0)
     with pytest.raises(ValueError):
@@ -238,21 +304,40 @@ def test_p_rand_uniform_on_half_open_range(lab):
     for z_max in (1.0, 5.0, 30.0):
         z = np.linspace(0.0, _below(z_max), 10001)
         f = _f(lab.p_rand(z, z_max))
-        np.testing.assert_allclose(f, 1.0 / z_max, rtol=1e-12)
-        # The integrand is constant: the trapezoid rule is exact up to the 1-ulp gap at z_max.
-        assert np.trapezoid(f, z) == pytest.approx(1.0, rel=1e-12)
+        np.testing.assert_allclose(
+            f,
+            1.0 / z_max,
+            rtol=1e-12,
+            err_msg=f"p_rand on [0, z_max) with z_max = {z_max}: expected 1 / z_max everywhere",
+        )
+        area = np.trapezoid(f, z)
+        assert area == pytest.approx(1.0, rel=1e-12), (
+            f"p_rand with z_max = {z_max}: expected the integral over [0, z_max) to be 1, "
+            f"got {area!r}"
+        )
         outside = _f(lab.p_rand(np.array([z_max, -0.1, z_max + 1.0]), z_max))
         np.testing.assert_array_equal(
-            outside, 0.0, err_msg=f"z_max = {z_max}: [0, z_max) is half-open"
+            outside,
+            0.0,
+            err_msg=f"p_rand at z = z_max = {z_max}, -0.1 and z_max + 1: expected 0 "
+            "([0, z_max) is half-open: a reading of z_max is p_max's)",
         )
 
 
-@grades("p_rand", points=3)
-def test_p_rand_shape_and_bad_input(lab):
-    """p_rand keeps the shape of z; a non-positive z_max raises ValueError."""
+@grades("p_rand", points=2)
+def test_p_rand_keeps_the_shape_of_z(lab):
+    """p_rand of a (3, 4) array of readings is a (3, 4) array"""
     got = _f(lab.p_rand(np.full((3, 4), 1.0), 2.0))
-    assert got.shape == (3, 4)
-    np.testing.assert_allclose(got, 0.5)
+    assert got.shape == (3, 4), f"z of shape (3, 4): expected shape (3, 4), got {got.shape}"
+    np.testing.assert_allclose(
+        got, 0.5, err_msg="p_rand(z = 1, z_max = 2) for a (3, 4) array: expected 0.5 everywhere"
+    )
+
+
+@grades("p_rand", points=1)
+@requires("test_p_rand_uniform_on_half_open_range")
+def test_p_rand_rejects_bad_input(lab):
+    """p_rand: a non-positive z_max raises ValueError."""
     with pytest.raises(ValueError):
         lab.p_rand(1.0, 0.0)
     with pytest.raises(ValueError):
@@ -277,12 +362,19 @@ def test_mixture_integrates_to_one_minus_w_max_plus_point_mass(lab, z_star):
             lab.beam_range_finder_model(nodes[:, None], np.full((nodes.size, 1), z_star), PARAMS)
         )
         assert q.shape == (nodes.size,), (
-            f"z (N, 1) with z_star (N, 1) should give (N,), got {q.shape}"
+            f"z (N, 1) with z_star (N, 1), N = {nodes.size} poses of one beam: expected shape "
+            f"(N,), got {q.shape}"
         )
         total += simpson(q, x=nodes)
-    assert total == pytest.approx(1.0 - PARAMS["z_max"], abs=1e-6)
+    assert total == pytest.approx(1.0 - PARAMS["z_max"], abs=1e-6), (
+        f"one beam, z* = {z_star}: expected the mixture to integrate to 1 - w_max = "
+        f"{1 - PARAMS['z_max']} over [0, z_max), got {total:.7f}"
+    )
     at_max = float(_f(lab.beam_range_finder_model(np.array([zmax]), np.array([z_star]), PARAMS)))
-    assert at_max >= PARAMS["z_max"] - 1e-12
+    assert at_max >= PARAMS["z_max"] - 1e-12, (
+        f"a reading of exactly max_range with z* = {z_star}: expected at least w_max = "
+        f"{PARAMS['z_max']} (the point mass), got {at_max!r}"
+    )
 
 
 @grades("beam_range_finder_model", points=4)
@@ -294,10 +386,12 @@ def test_mixture_point_mass_at_exactly_max_range(lab):
     z = np.array([[zmax], [_below(zmax)]])
     q = _f(lab.beam_range_finder_model(z, np.full((2, 1), 2.0), prm))
     assert q[0] == pytest.approx(prm["z_max"], rel=1e-9), (
-        "a max-range reading is explained by z_max * p_max"
+        f"a reading of exactly max_range = 5 with z* = 2: expected w_max * p_max = "
+        f"{prm['z_max']}, got {q[0]!r}"
     )
     assert q[1] == pytest.approx(prm["z_rand"] / zmax, rel=1e-9), (
-        "just below max_range only p_rand remains"
+        f"a reading 1 ulp below max_range with z* = 2: expected only w_rand / z_max = "
+        f"{prm['z_rand'] / zmax} (no point mass), got {q[1]!r}"
     )
 
 
@@ -308,36 +402,57 @@ def test_mixture_continuity_and_support(lab):
     for a, b in ((1e-6, z_star - 1e-6), (z_star + 1e-6, 5.0 - 1e-6)):
         z = np.linspace(a, b, 50001)
         q = _f(lab.beam_range_finder_model(z[:, None], np.full((z.size, 1), z_star), PARAMS))
-        assert np.all(np.isfinite(q)) and np.all(q > 0)
-        # |dq/dz| <= z_hit eta |N'| + z_short eta lambda^2
-        #        < 0.7 * 1.0 * 6.1 + 0.15 * 1.2 * 0.64 < 5 per metre,
-        # and h = 5e-5 m: neighbours differ by less than 2.5e-4.
-        assert np.max(np.abs(np.diff(q))) < 2.5e-4, "the mixture jumps inside a smooth piece"
-    # The jump at z* is the short component's: z_short * eta * lambda * e^{-lambda z*}.
+        assert np.all(np.isfinite(q)) and np.all(q > 0), (
+            f"one beam, z* = 2.5, readings in ({a:g}, {b:g}): expected positive finite values "
+            f"(z_rand > 0), got min {np.nanmin(q):.3g}"
+        )
+        # |dq/dz| < 5 per metre and h = 5e-5 m: neighbours differ by less than 2.5e-4.
+        jump = float(np.max(np.abs(np.diff(q))))
+        assert jump < 2.5e-4, (
+            f"one beam, z* = 2.5, readings in ({a:g}, {b:g}): expected a continuous mixture, "
+            f"got a jump of {jump:.3g}"
+        )
     q = _f(
         lab.beam_range_finder_model(
             np.array([[z_star], [float(np.nextafter(z_star, 9))]]), np.full((2, 1), z_star), PARAMS
         )
     )
     jump = PARAMS["z_short"] * _ref_p_short(z_star, z_star, PARAMS["lambda_short"])
-    assert q[0] - q[1] == pytest.approx(jump, rel=1e-6)
+    assert q[0] - q[1] == pytest.approx(jump, rel=1e-6), (
+        f"at z = z* = 2.5 the short component ends: expected a drop of z_short p_short(z*) = "
+        f"{jump:.6g} just past z*, got {q[0] - q[1]:.6g}"
+    )
+
+
+MODEL_VALUES = ("test_agrees_with_plain_loop", "test_mixture_point_mass_at_exactly_max_range")
 
 
 @grades("beam_range_finder_model", points=5)
+@requires(*MODEL_VALUES)
 def test_product_equals_exp_of_log_form(lab):
     """q (log=False) equals exp(log q) (log=True) for one pose and for many poses."""
     rng = np.random.default_rng(202)
     z, z_star = _random_scan(rng, 20, 30, PARAMS["max_range"])
     q = _f(lab.beam_range_finder_model(z, z_star, PARAMS))
     log_q = _f(lab.beam_range_finder_model(z, z_star, PARAMS, log=True))
-    assert q.shape == log_q.shape == (20,)
+    assert q.shape == log_q.shape == (20,), (
+        f"20 poses of 30 beams: expected shapes (20,) for q and log q, got {q.shape} and "
+        f"{log_q.shape}"
+    )
     # 30 beams keep q well inside the double range, so exp(log q) is accurate to ~30 ulp per beam.
-    np.testing.assert_allclose(q, np.exp(log_q), rtol=1e-9)
+    np.testing.assert_allclose(
+        q,
+        np.exp(log_q),
+        rtol=1e-9,
+        err_msg="20 random scans: expected q (log=False) to equal exp(log q) (log=True)",
+    )
     one = float(_f(lab.beam_range_finder_model(z[0], z_star[0], PARAMS, log=True)))
-    assert one == pytest.approx(log_q[0], rel=1e-12)
+    assert one == pytest.approx(log_q[0], rel=1e-12), (
+        f"one scan (B,) alone: expected the same log q as in the batch, {log_q[0]!r}, got {one!r}"
+    )
 
 
-@grades("beam_range_finder_model", points=8)
+@grades("beam_range_finder_model", points=6)
 def test_agrees_with_plain_loop(lab):
     """Random scans: matches a per-beam loop of Table 6.1 for (B,), (N, B) z_star and (N, B) z."""
     rng = np.random.default_rng(203)
@@ -353,35 +468,80 @@ def test_agrees_with_plain_loop(lab):
     z, z_star = _random_scan(rng, 12, 25, prm["max_range"])
     expected = np.array([_loop_model(z[i], z_star[i], prm) for i in range(12)])
     np.testing.assert_allclose(
-        _f(lab.beam_range_finder_model(z, z_star, prm)), expected[:, 0], rtol=1e-9
+        _f(lab.beam_range_finder_model(z, z_star, prm)),
+        expected[:, 0],
+        rtol=1e-9,
+        err_msg="12 random scans of 25 beams: expected q = prod_k (z_hit p_hit + z_short "
+        "p_short + z_max p_max + z_rand p_rand) (Table 6.1)",
     )
     np.testing.assert_allclose(
-        _f(lab.beam_range_finder_model(z, z_star, prm, log=True)), expected[:, 1], rtol=1e-9
+        _f(lab.beam_range_finder_model(z, z_star, prm, log=True)),
+        expected[:, 1],
+        rtol=1e-9,
+        err_msg="12 random scans, log=True: expected sum_k log(mixture_k)",
     )
-    # One scan (B,) against many poses (N, B).
     expected_one = np.array([_loop_model(z[0], z_star[i], prm)[1] for i in range(12)])
     got = _f(lab.beam_range_finder_model(z[0], z_star, prm, log=True))
-    assert got.shape == (12,)
-    np.testing.assert_allclose(got, expected_one, rtol=1e-9)
-    # One scan, one pose: a single number.
+    assert got.shape == (12,), (
+        f"one scan (B,) and 12 poses (12, B): expected (12,), got {got.shape}"
+    )
+    np.testing.assert_allclose(
+        got,
+        expected_one,
+        rtol=1e-9,
+        err_msg="one scan (B,) against 12 poses' z* (12, B): expected one log q per pose",
+    )
     single = _f(lab.beam_range_finder_model(z[3], z_star[3], prm))
-    assert single.shape == () and float(single) == pytest.approx(expected[3, 0], rel=1e-9)
+    assert single.shape == () and float(single) == pytest.approx(expected[3, 0], rel=1e-9), (
+        f"one scan, one pose: expected the single number {expected[3, 0]:.6g}, got {single!r}"
+    )
 
 
-@grades("beam_range_finder_model", points=5)
+@grades("beam_range_finder_model", points=4)
+@requires(*MODEL_VALUES)
 def test_log_form_does_not_underflow(lab):
     """3000 beams: the product underflows to 0.0 but the log form stays finite and exact."""
     rng = np.random.default_rng(204)
     z, z_star = _random_scan(rng, 1, 3000, PARAMS["max_range"])
     expected_log = _loop_model(z[0], z_star[0], PARAMS)[1]
-    assert expected_log < -1000  # so the product of the per-beam p is below 1e-434: 0.0 in doubles
+    assert expected_log < -1000, "test setup: the product of 3000 beams must underflow"
     log_q = float(_f(lab.beam_range_finder_model(z[0], z_star[0], PARAMS, log=True)))
-    assert np.isfinite(log_q), "log=True must sum logs per beam, not take the log of the product"
-    assert log_q == pytest.approx(expected_log, rel=1e-10)
-    assert float(_f(lab.beam_range_finder_model(z[0], z_star[0], PARAMS))) == 0.0
+    assert np.isfinite(log_q) and log_q == pytest.approx(expected_log, rel=1e-10), (
+        f"3000 beams, log=True: expected sum of the per-beam logs {expected_log:.6f}, got "
+        f"{log_q!r}: take the log per beam and sum, not the log of the product"
+    )
+    q = float(_f(lab.beam_range_finder_model(z[0], z_star[0], PARAMS)))
+    assert q == 0.0, f"3000 beams, log=False: the product underflows, expected 0.0, got {q!r}"
 
 
 @grades("beam_range_finder_model", points=4)
+@requires(*MODEL_VALUES)
+def test_log_form_with_vanishing_components(lab):
+    """log=True stays exact when z_short = z_rand = 0 and a beam is 40 sigma off (p underflows)."""
+    # Only p_hit and p_max remain. z = 3, z* = 1, sigma = 0.05: u = 40, so p_hit is about
+    # e^-800, below the smallest double: a per-beam log(p) is -inf although log p is -800.
+    prm = dict(PARAMS, z_hit=0.9, z_short=0.0, z_max=0.1, z_rand=0.0, sigma_hit=0.05)
+    z, z_star = np.array([3.0, 1.0, 5.0]), np.array([1.0, 1.0, 2.0])
+    sigma = prm["sigma_hit"]
+    cdf = lambda x: 0.5 * (1.0 + math.erf(x / math.sqrt(2.0)))  # noqa: E731
+    log_hit = [
+        math.log(0.9)
+        - math.log(cdf((5.0 - zs) / sigma) - cdf(-zs / sigma))
+        - math.log(sigma * math.sqrt(2.0 * math.pi))
+        - 0.5 * ((zz - zs) / sigma) ** 2
+        for zz, zs in ((3.0, 1.0), (1.0, 1.0))
+    ]
+    expected = log_hit[0] + log_hit[1] + math.log(0.1)  # the third beam is a max-range reading
+    got = float(_f(lab.beam_range_finder_model(z, z_star, prm, log=True)))
+    assert np.isfinite(got) and got == pytest.approx(expected, rel=1e-9), (
+        f"readings (3, 1, 5) for z* (1, 1, 2), z_short = z_rand = 0, sigma = 0.05: expected "
+        f"log q = {expected:.4f} (the first beam 40 sigma out: log p_hit is about -800, its "
+        f"p underflows), got {got!r}: compute that beam's log in log space"
+    )
+
+
+@grades("beam_range_finder_model", points=3)
+@requires(*MODEL_VALUES)
 def test_ranks_true_expected_ranges_first(lab):
     """The pose whose z* generated the scan is more likely than poses with shifted z*."""
     rng = np.random.default_rng(205)
@@ -389,15 +549,21 @@ def test_ranks_true_expected_ranges_first(lab):
     z = np.clip(z_true + rng.normal(0.0, 0.05, 60), 0.0, 5.0)  # noise 4x below sigma_hit
     candidates = np.stack([np.clip(z_true + d, 0.0, 5.0) for d in (0.0, 0.1, -0.1, 0.3, -0.3, 1.0)])
     log_q = _f(lab.beam_range_finder_model(z, candidates, PARAMS, log=True))
-    assert int(np.argmax(log_q)) == 0
-    assert np.all(np.diff(log_q[[0, 1, 3, 5]]) < 0), "larger errors must be less likely"
+    assert int(np.argmax(log_q)) == 0, (
+        f"z* shifted by 0, 0.1, -0.1, 0.3, -0.3, 1.0 m: expected the unshifted z* most likely, "
+        f"got log q {np.round(log_q, 2)}"
+    )
+    assert np.all(np.diff(log_q[[0, 1, 3, 5]]) < 0), (
+        f"z* shifted by 0, 0.1, 0.3, 1.0 m: expected decreasing log q, got "
+        f"{np.round(log_q[[0, 1, 3, 5]], 2)}"
+    )
 
 
-@grades("beam_range_finder_model", points=5)
-def test_beam_model_rejects_bad_input(lab):
-    """Bad weights, negative sigma, z* beyond max_range and mismatched shapes raise ValueError."""
+@grades("beam_range_finder_model", points=2)
+@requires(*MODEL_VALUES)
+def test_beam_model_rejects_bad_params(lab):
+    """beam_range_finder_model: weights not summing to 1, a negative weight, sigma or lambda <= 0"""
     z, z_star = np.array([1.0, 2.0, 3.0]), np.array([1.0, 2.5, 3.0])
-    lab.beam_range_finder_model(z, z_star, PARAMS)  # valid: must not raise
     for bad in (
         dict(PARAMS, z_hit=0.9),  # weights sum to 1.2
         dict(PARAMS, z_hit=0.8, z_max=-0.05),  # a negative weight (the sum is still 1)
@@ -407,6 +573,16 @@ def test_beam_model_rejects_bad_input(lab):
     ):
         with pytest.raises(ValueError):
             lab.beam_range_finder_model(z, z_star, bad)
+
+
+@grades("beam_range_finder_model", points=3)
+@requires(*MODEL_VALUES)
+def test_beam_model_rejects_bad_readings_and_shapes(lab):
+    """beam_range_finder_model: readings outside [0, max_range], z* beyond it, shape mismatches"""
+    z, z_star = np.array([1.0, 2.0, 3.0]), np.array([1.0, 2.5, 3.0])
+    for bad_z in ([1.0, 5.5, 3.0], [1.0, -0.1, 3.0]):  # map no-returns to max_range first
+        with pytest.raises(ValueError):
+            lab.beam_range_finder_model(np.array(bad_z), z_star, PARAMS)
     with pytest.raises(ValueError):
         lab.beam_range_finder_model(z, np.array([1.0, 6.0, 3.0]), PARAMS)  # z* beyond max_range
     with pytest.raises(ValueError):
@@ -433,7 +609,7 @@ def maze():
     return load_maze()
 
 
-@grades("pose_likelihood_map", points=7)
+@grades("pose_likelihood_map", points=8)
 def test_likelihood_map_matches_ray_cast_oracle(lab, maze):
     """(P, H) log-likelihoods equal the beam model on cast_rays' z* for each position, heading."""
     rng = np.random.default_rng(301)
@@ -441,23 +617,32 @@ def test_likelihood_map_matches_ray_cast_oracle(lab, maze):
     headings = rng.uniform(-np.pi, np.pi, 4)
     scan = np.clip(rng.uniform(0.0, 4.5, 36), 0.0, 4.0)  # some readings exactly max_range
     got = _f(lab.pose_likelihood_map(scan, maze, BEAMS, MAZE_PARAMS, positions, headings))
-    assert got.shape == (15, 4), f"expected (P, H) = (15, 4), got {got.shape}"
+    assert got.shape == (15, 4), (
+        f"15 positions, 4 headings: expected (P, H) = (15, 4), got {got.shape}"
+    )
     for h, theta in enumerate(headings):
         poses = np.column_stack([positions, np.full(15, theta)])
         z_star = cast_rays(maze, poses, BEAMS, MAZE_PARAMS["max_range"])
         expected = [_loop_model(scan, z_star[p], MAZE_PARAMS)[1] for p in range(15)]
         # rtol: the sum of 36 logs computed in a different order (and a ray exactly through
         # a cell corner may pick either neighbour, a set of measure zero for random poses).
-        np.testing.assert_allclose(got[:, h], expected, rtol=1e-7)
+        np.testing.assert_allclose(
+            got[:, h],
+            expected,
+            rtol=1e-7,
+            err_msg=f"heading {theta:.3f} rad (column {h}): expected the log-likelihood of the "
+            "scan given z* = cast_rays at (x, y, heading) with beam angles heading + BEAMS",
+        )
 
 
-@grades("pose_likelihood_map", points=10)
+@grades("pose_likelihood_map", points=9)
+@requires("test_likelihood_map_matches_ray_cast_oracle")
 def test_true_pose_ranks_highest_in_the_maze(lab, maze):
     """A scan simulated at a pose in the maze (cast_rays + noise) is most likely at that pose."""
     rng = np.random.default_rng(302)
     true = np.array([4.37, 6.12, 0.6])  # a free spot in a corridor
     z_star = cast_rays(maze, true, BEAMS, MAZE_PARAMS["max_range"])[0]
-    assert z_star.min() > 0.1, "the true pose must be in free space"
+    assert z_star.min() > 0.1, "test setup: the true pose must be in free space"
     # Noise sd 0.02 m, a fifth of sigma_hit: the truth's expected log-likelihood beats a
     # pose whose z* differ by 0.1 m on a few beams by many nats.
     scan = np.where(
@@ -465,23 +650,29 @@ def test_true_pose_ranks_highest_in_the_maze(lab, maze):
         MAZE_PARAMS["max_range"],
         np.clip(z_star + rng.normal(0.0, 0.02, z_star.size), 0.0, _below(4.0)),
     )
-    # Candidates: a 0.5 m lattice of cell centres (free or not), plus the true position.
     g = np.arange(0.275, 10.15, 0.5)
     lattice = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
     positions = np.vstack([lattice, true[:2]])
     headings = np.concatenate([np.linspace(-np.pi, np.pi, 9)[:-1], [true[2]]])
     log_l = _f(lab.pose_likelihood_map(scan, maze, BEAMS, MAZE_PARAMS, positions, headings))
-    assert log_l.shape == (positions.shape[0], headings.size)
-    assert np.all(~np.isnan(log_l))
+    assert log_l.shape == (positions.shape[0], headings.size) and np.all(~np.isnan(log_l)), (
+        f"{positions.shape[0]} positions, {headings.size} headings: expected a NaN-free "
+        f"({positions.shape[0]}, {headings.size}) array, got shape {log_l.shape}"
+    )
     best = np.unravel_index(int(np.argmax(log_l)), log_l.shape)
     assert best == (positions.shape[0] - 1, headings.size - 1), (
-        f"best pose is {positions[best[0]]}, heading {headings[best[1]]:.2f}; truth is {true}"
+        f"a scan simulated at {true}: expected the true pose to be most likely, got position "
+        f"{positions[best[0]]}, heading {headings[best[1]]:.2f}"
     )
-    # The truth beats every lattice pose by a clear margin (the nearest is 0.13 m away).
-    assert log_l[-1, -1] - np.max(log_l[:-1]) > 5.0
+    margin = float(log_l[-1, -1] - np.max(log_l[:-1]))
+    assert margin > 5.0, (
+        f"a scan simulated at {true}: expected the truth to beat every lattice pose by more "
+        f"than 5 nats, got {margin:.2f}"
+    )
 
 
 @grades("pose_likelihood_map", points=3)
+@requires("test_likelihood_map_matches_ray_cast_oracle")
 def test_likelihood_map_rejects_bad_input(lab, maze):
     """Scan/beam angles of different lengths, positions not (P, 2), bad params: ValueError."""
     scan = np.full(36, 1.0)

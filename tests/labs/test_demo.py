@@ -1,4 +1,8 @@
-"""Hidden tests of the demo lab: 40 points normalize, 30 wrap, 30 mean_pose."""
+"""Hidden tests of the demo lab: 40 points normalize, 30 wrap, 30 mean_pose.
+
+Refusal tests pay only when the function also computes the right values
+(``requires``): a function that always raises earns nothing.
+"""
 
 from __future__ import annotations
 
@@ -34,9 +38,9 @@ def test_normalize_sums_to_one(lab):
     )
 
 
-@pytest.mark.grades("normalize", points=10)
+@pytest.mark.grades("normalize", points=15)
 def test_normalize_known_values(lab):
-    """normalize: [1, 1, 2] becomes [0.25, 0.25, 0.5]"""
+    """normalize: [1, 1, 2] becomes [0.25, 0.25, 0.5]; a zero weight is valid: [0, 1, 3]"""
     got = _floats(lab.normalize(np.array([1.0, 1.0, 2.0])))
     np.testing.assert_allclose(
         got,
@@ -44,23 +48,36 @@ def test_normalize_known_values(lab):
         atol=1e-12,
         err_msg="normalize([1, 1, 2]): expected [0.25, 0.25, 0.5]",
     )
+    got = _floats(lab.normalize(np.array([0.0, 1.0, 3.0])))
+    np.testing.assert_allclose(
+        got,
+        [0.0, 0.25, 0.75],
+        atol=1e-12,
+        err_msg="normalize([0, 1, 3]): a zero weight is allowed, expected [0, 0.25, 0.75]",
+    )
 
 
-@pytest.mark.grades("normalize", points=10)
+REFUSAL_NEEDS = ("test_normalize_sums_to_one", "test_normalize_known_values")
+
+
+@pytest.mark.grades("normalize", points=7)
+@pytest.mark.requires(*REFUSAL_NEEDS)
 def test_normalize_rejects_negative_weights(lab):
     """normalize: a negative weight raises ValueError"""
     with pytest.raises(ValueError):
         lab.normalize(np.array([0.5, -0.1, 0.6]))
 
 
-@pytest.mark.grades("normalize", points=5)
+@pytest.mark.grades("normalize", points=4)
+@pytest.mark.requires(*REFUSAL_NEEDS)
 def test_normalize_rejects_all_zero(lab):
     """normalize: all-zero weights raise ValueError instead of dividing by zero"""
     with pytest.raises(ValueError):
         lab.normalize(np.zeros(4))
 
 
-@pytest.mark.grades("normalize", points=5)
+@pytest.mark.grades("normalize", points=4)
+@pytest.mark.requires(*REFUSAL_NEEDS)
 def test_normalize_rejects_2d_input(lab):
     """normalize: a 2-D array raises ValueError"""
     with pytest.raises(ValueError):
@@ -98,7 +115,8 @@ def test_wrap_array(lab):
         f"expected every angle in [-pi, pi), got range [{got.min()!r}, {got.max()!r}]"
     )
     assert np.all(_angle_error(got, angles) < 1e-9), (
-        "expected the same directions as the input angles"
+        "wrap(linspace(-20, 20, 101)): expected the same directions as the input angles "
+        f"(up to 2 pi), got a largest difference of {float(np.max(_angle_error(got, angles))):.3g}"
     )
 
 
@@ -121,7 +139,9 @@ def test_mean_pose_across_the_seam(lab):
     poses = np.array([[1.0, 0.0, math.pi - 0.1], [3.0, 2.0, -math.pi + 0.1]])
     got = _floats(lab.mean_pose(poses))
     assert got.shape == (3,), f"expected shape (3,), got {got.shape}"
-    np.testing.assert_allclose(got[:2], [2.0, 1.0], atol=1e-12, err_msg="mean x, y")
+    np.testing.assert_allclose(
+        got[:2], [2.0, 1.0], atol=1e-12, err_msg="mean x, y of (1, 0) and (3, 2): expected (2, 1)"
+    )
     assert _angle_error(got[2], math.pi) < 1e-9, f"expected heading pi (or -pi), got {got[2]!r}"
     assert -math.pi <= got[2] < math.pi, (
         f"expected the heading wrapped to [-pi, pi), got {got[2]!r}"
@@ -129,7 +149,10 @@ def test_mean_pose_across_the_seam(lab):
 
 
 @pytest.mark.grades("mean_pose", points=5)
+@pytest.mark.requires("test_mean_pose_of_aligned_poses")
 def test_mean_pose_rejects_wrong_shape(lab):
-    """mean_pose: poses without a heading column, shape (N, 2), raise ValueError"""
+    """mean_pose: poses of shape (N, 2) (no heading), or no poses at all (0, 3), raise ValueError"""
     with pytest.raises(ValueError):
         lab.mean_pose(np.ones((4, 2)))
+    with pytest.raises(ValueError):  # an empty array has no mean: not NaN
+        lab.mean_pose(np.zeros((0, 3)))

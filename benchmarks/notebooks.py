@@ -1,0 +1,74 @@
+"""Kernel CPU time of every solved lab notebook, against the 20 s budget of a lab.
+
+Runs ``robolab solve`` into a temporary folder, executes each solved notebook with
+nbclient (Jupyter's own executor) and reads the kernel's own CPU time
+(``resource.getrusage`` in a last cell): the budget is for the student's kernel, so
+start-up of the client and wall time lost to a busy machine do not count. Prints one
+row per lab with the slowest cells, and the machine's load.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BUDGET = 20.0  # seconds of kernel CPU per solved notebook (issue: each lab <= 20 s)
+CPU_CELL = ("import resource as _r; _u = _r.getrusage(_r.RUSAGE_SELF); "
+            "print('CPU', _u.ru_utime + _u.ru_stime)")
+TIMER = ("import time as _t, resource as _r\n"
+         "def _cpu():\n    u = _r.getrusage(_r.RUSAGE_SELF); return u.ru_utime + u.ru_stime\n"
+         "_cells = []\n"
+         "def _pre(*a):\n    global _c0\n    _c0 = _cpu()\n"
+         "def _post(result):\n"
+         "    cell = (result.info.raw_cell or '').strip().splitlines()[:1]\n"
+         "    _cells.append((_cpu() - _c0, cell))\n"
+         "get_ipython().events.register('pre_run_cell', _pre)\n"
+         "get_ipython().events.register('post_run_cell', _post)")
+REPORT = ("import json as _j; print('CELLS', _j.dumps(sorted(_cells, reverse=True)[:3]))\n"
+          + CPU_CELL)
+
+
+def run(notebook: Path) -> tuple[float, list, float]:
+    import nbformat
+    from nbclient import NotebookClient
+
+    nb = nbformat.read(str(notebook), as_version=4)
+    nb.cells.insert(0, nbformat.v4.new_code_cell(TIMER))
+    nb.cells.append(nbformat.v4.new_code_cell(REPORT))
+    start = time.perf_counter()
+    NotebookClient(nb, timeout=900, kernel_name="python3",
+                   resources={"metadata": {"path": str(notebook.parent)}}).execute()
+    wall = time.perf_counter() - start
+    text = "".join(o.get("text", "") for o in nb.cells[-1].outputs if o.get("name") == "stdout")
+    cpu = float(text.split("CPU", 1)[1].split()[0])
+    cells = json.loads(text.split("CELLS", 1)[1].split("\n", 1)[0])
+    return cpu, cells, wall
+
+
+def main() -> int:
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "solved"
+        subprocess.run([sys.executable, "-m", "robolab.cli", "solve", str(ROOT / "notebooks"),
+                        "-o", str(out)], check=True, capture_output=True)
+        print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; "
+              f"budget {BUDGET:g} s of kernel CPU per lab")
+        print(f"{'lab':<24}{'kernel CPU [s]':>16}{'of budget':>11}{'wall [s]':>10}  slowest cells")
+        over = 0
+        for nb in sorted(out.glob("*.ipynb")):
+            cpu, cells, wall = run(nb)
+            over += cpu > BUDGET
+            slow = "; ".join(f"{c:.1f} s {(line or [''])[0][:40]!r}" for c, line in cells)
+            print(f"{nb.stem:<24}{cpu:>16.1f}{cpu / BUDGET:>10.0%}{wall:>10.1f}  {slow}")
+        print(f"{over} lab(s) over budget")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,220 @@
+"""The grader's view of a worker's process group: CPU time of the whole tree, and a sweep.
+
+The worker is the leader of its own process group; the seccomp filter keeps
+every process it starts in that group (``setsid`` and ``setpgid`` fail) and
+the worker is the reaper of its orphans. So the group *is* everything the
+worker started, and the kernel's ``/proc`` says how much CPU it used:
+
+* the leader's own time plus the time of the children it has reaped
+  (``utime + stime + cutime + cstime``);
+* plus the time of every other member still in the table (running, stopped
+  or a zombie nobody reaped).
+
+:class:`GroupClock` charges that to the call that is running; :meth:`GroupClock.sweep`
+stops the group, charges what its members used, and kills every member but
+the leader, so nothing a call started outlives it. Scanning ``/proc`` costs
+milliseconds on a busy machine, so it is skipped when no process was created
+on the machine since the last scan (the last pid in ``/proc/loadavg`` has not
+moved): a call that forks nothing costs two small reads.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+from dataclasses import dataclass, field
+
+__all__ = ["GroupClock", "Member", "group_members", "last_pid"]
+
+_TICK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+
+
+@dataclass(frozen=True)
+class Member:
+    """One process of a group, from ``/proc/<pid>/stat``."""
+
+    pid: int
+    state: str
+    start: int  # start time in clock ticks after boot: (pid, start) names a process uniquely
+    own_seconds: float  # utime + stime
+    children_seconds: float  # cutime + cstime: the children it reaped
+
+    @property
+    def cpu_seconds(self) -> float:
+        """Its CPU time and that of the children it reaped."""
+        return self.own_seconds + self.children_seconds
+
+
+def _stat(pid: int) -> list[bytes] | None:
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            return f.read().rsplit(b")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+
+
+def _member(pid: int, fields: list[bytes]) -> Member:
+    # fields[0] is the state (field 3 of stat); utime..cstime are fields 14-17, starttime 22.
+    own = (int(fields[11]) + int(fields[12])) / _TICK
+    children = (int(fields[13]) + int(fields[14])) / _TICK
+    return Member(pid, fields[0].decode(), int(fields[19]), own, children)
+
+
+def last_pid() -> int:
+    """The most recently allocated pid of this pid namespace (-1 when unknown)."""
+    try:
+        with open("/proc/loadavg", "rb") as f:
+            return int(f.read().split()[-1])
+    except (OSError, ValueError, IndexError):
+        return -1
+
+
+#: Most new pids checked one by one; beyond that (or after a wrap) the whole of /proc is read.
+_MAX_RANGE = 4096
+
+
+def group_members(pgid: int, pids: range | None = None) -> list[Member]:
+    """Every process whose process group is ``pgid``, among ``pids`` (default: all of /proc)."""
+    candidates = (
+        (int(e.name) for e in os.scandir("/proc") if e.name.isdigit()) if pids is None else pids
+    )
+    found = []
+    for pid in candidates:
+        fields = _stat(pid)
+        if fields is not None and len(fields) > 19 and int(fields[2]) == pgid:
+            found.append(_member(pid, fields))
+    return found
+
+
+@dataclass
+class GroupClock:
+    """CPU time of a worker's process group, charged call by call.
+
+    The accounting runs from the end of one call to the end of the next, so
+    what a student's thread does between calls counts against the next call.
+
+    Attributes
+    ----------
+    leader : int
+        The worker's pid (= its process group id).
+    charged : dict
+        ``{(pid, start): seconds}`` of members already charged to a call.
+    pending : float
+        CPU seconds of charged members the leader has not reaped yet: when it
+        does, they reappear in its children's time and are not charged twice.
+    """
+
+    leader: int
+    charged: dict[tuple[int, int], float] = field(default_factory=dict)
+    pending: float = 0.0
+    _own_base: float = 0.0
+    _children_seen: float = 0.0
+    _children: float = 0.0
+    _members: float = 0.0
+    _swept_pid: int = -1
+    _scanned: float = 0.0
+
+    def __post_init__(self) -> None:
+        self._open()
+
+    def _leader(self) -> Member | None:
+        fields = _stat(self.leader)
+        return None if fields is None or len(fields) < 20 else _member(self.leader, fields)
+
+    def _observe(self) -> float:
+        """The leader's own seconds; adds the children it reaped since last time to the call."""
+        now = self._leader()
+        if now is None:
+            return self._own_base  # gone: nothing more to charge
+        fresh = now.children_seconds - self._children_seen
+        credit = min(self.pending, max(fresh, 0.0))
+        self.pending -= credit
+        self._children += fresh - credit
+        self._children_seen = now.children_seconds
+        return now.own_seconds
+
+    def _open(self) -> None:
+        """Start charging the next call: what the group uses from now on is its."""
+        self._own_base = self._observe()
+        self._children = self._members = 0.0
+        self._swept_pid = last_pid()
+
+    def start_call(self) -> None:
+        """A request is about to be sent (members are rescanned from now on)."""
+        self._scanned = time.monotonic()
+
+    def _new_pids(self) -> range | None:
+        """The pids allocated since the last sweep, None when unknown; empty when none were."""
+        now = last_pid()
+        if now < 0 or self._swept_pid < 0 or not 0 <= now - self._swept_pid <= _MAX_RANGE:
+            return None
+        return range(self._swept_pid + 1, now + 1)
+
+    def _others(self) -> list[Member]:
+        # Every member but the leader was killed at the last sweep, so only processes
+        # created since then can be new members (charged zombies are left out).
+        pids = self._new_pids()
+        if pids is not None and not pids:
+            return []
+        return [
+            m
+            for m in group_members(self.leader, pids)
+            if m.pid != self.leader and (m.pid, m.start) not in self.charged
+        ]
+
+    def used(self, *, scan_every: float = 0.5) -> float:
+        """CPU seconds the group used in this call (members rescanned every ``scan_every`` s)."""
+        own = self._observe() - self._own_base
+        now = time.monotonic()
+        if now - self._scanned >= scan_every:
+            self._scanned = now
+            self._members = sum(m.cpu_seconds for m in self._others())
+        return own + self._children + self._members
+
+    def sweep(self) -> tuple[float, int]:
+        """End the call: charge and kill every member but the leader.
+
+        Returns the CPU seconds of the call and how many processes were killed.
+        The group is stopped first, so nothing forks while it is scanned; the
+        leader is continued afterwards.
+        """
+        used = self._observe() - self._own_base + self._children
+        pids = self._new_pids()
+        if pids is not None and not pids:
+            self._open()
+            return used, 0  # no process was created anywhere since the last sweep
+        try:
+            os.killpg(self.leader, signal.SIGSTOP)
+        except (ProcessLookupError, PermissionError):
+            return used, 0
+        killed = 0
+        others: list[Member] = []
+        try:
+            others = self._others()
+            for member in others:
+                self.charged[(member.pid, member.start)] = member.cpu_seconds
+                self.pending += member.cpu_seconds
+                if member.state != "Z":
+                    try:
+                        os.kill(member.pid, signal.SIGKILL)
+                        killed += 1
+                    except (ProcessLookupError, PermissionError):
+                        pass
+        finally:
+            try:
+                os.kill(self.leader, signal.SIGCONT)
+            except (ProcessLookupError, PermissionError):
+                pass
+        _wait_dead([m.pid for m in others if m.state != "Z"])
+        self._open()
+        return used + sum(m.cpu_seconds for m in others), killed
+
+
+def _wait_dead(pids: list[int], timeout: float = 2.0) -> None:
+    """Wait (briefly) until killed processes are zombies or gone: SIGKILL is asynchronous."""
+    deadline = time.monotonic() + timeout
+    while pids and time.monotonic() < deadline:
+        pids = [p for p in pids if (f := _stat(p)) is not None and f[0] not in (b"Z", b"X")]
+        if pids:
+            time.sleep(0.002)

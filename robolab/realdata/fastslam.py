@@ -1,0 +1,111 @@
+"""Lab 07 on real data: FastSLAM 1.0 on the Freiburg course's range-bearing data set.
+
+The data set's motion is the odometry motion model ``(r1, t, r2)``; the lab's
+:func:`fastslam_step` takes unicycle commands ``(v, w)`` with an Euler step
+``x += v dt cos(theta)``, ``theta += w dt``. One odometry step is exactly two such
+steps with ``dt = 1``: ``(0, r1)`` turns by ``r1``, then ``(t, r2)`` drives ``t`` along
+the new heading and turns by ``r2``. The observations go with the second.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from robolab.datasets.freiburg import FreiburgData
+from robolab.evaluation import align_points
+from robolab.geometry import transform_points
+from robolab.validation import check_count, check_rng
+
+__all__ = ["MOTION_NOISE", "MEASUREMENT_NOISE", "run_fastslam_freiburg"]
+
+#: Standard deviations of the odometry ``(r1, t, r2)``: radians, metres, radians
+#: (the course's FastSLAM exercise).
+MOTION_NOISE = (0.005, 0.01, 0.005)
+#: The measurement noise covariance ``Qt`` of range (m^2) and bearing (rad^2) of the course.
+MEASUREMENT_NOISE = np.diag([0.1, 0.1])
+
+
+def run_fastslam_freiburg(
+    data: FreiburgData,
+    n_particles: int,
+    rng: np.random.Generator,
+    *,
+    fastslam_step: Callable | None = None,
+    init_particles: Callable | None = None,
+    ess_threshold: float | None = 0.5,
+    motion_noise=MOTION_NOISE,
+    Qt=MEASUREMENT_NOISE,
+) -> dict:
+    """Run FastSLAM over a Freiburg data set; the lab's functions may be passed in.
+
+    Parameters
+    ----------
+    data : FreiburgData
+        From :func:`robolab.datasets.read_freiburg`.
+    n_particles : int
+    rng : numpy.random.Generator
+    fastslam_step, init_particles : callable, optional
+        The lab's functions (signatures of :mod:`solutions.fastslam`); default the
+        reference solution's.
+    ess_threshold : float or None
+        Resample when the effective sample size falls below ``ess_threshold * M``
+        (default 0.5), passed as ``fastslam_step``'s ``resample``; None resamples
+        after every step with an observation (the book, ``resample=True``).
+    motion_noise : (sigma_r1, sigma_t, sigma_r2)
+    Qt : array_like, shape (2, 2)
+
+    Returns
+    -------
+    dict
+        ``path`` (T + 1, 3) weighted-mean poses, ``landmarks`` (K, 2) weighted-mean
+        landmark estimates in the rows of ``data.landmarks`` (NaN if never seen),
+        ``rmse`` against ``data.landmarks`` as estimated (the frame is fixed by the
+        start at the origin) and ``rmse_aligned`` after SE(2) alignment, ``alignment``
+        (3,), ``resamples`` (how many steps resampled), ``state`` the final particles.
+    """
+    if fastslam_step is None or init_particles is None:
+        from solutions import fastslam as reference
+
+        fastslam_step = fastslam_step or reference.fastslam_step
+        init_particles = init_particles or reference.init_particles
+    n = check_count("n_particles", n_particles)
+    check_rng(rng)
+    s_r1, s_t, s_r2 = (float(v) for v in motion_noise)
+    q_turn = np.diag([0.0, 0.0, s_r1**2])
+    q_drive = np.diag([s_t**2, s_t**2, s_r2**2])
+    k = len(data.landmark_ids)
+    state = init_particles(n, k, np.zeros(3), "first_observation")
+    resample = True if ess_threshold is None else float(ess_threshold)
+    path, resamples, seen = [_mean_pose(state)], 0, np.zeros(k, dtype=bool)
+    for i, (r1, t, r2) in enumerate(data.odometry):
+        state = fastslam_step(state, [0.0, r1], None, q_turn, Qt, rng, 1.0)
+        obs = data.indexed_observations(i)
+        state = fastslam_step(state, [t, r2], obs, q_drive, Qt, rng, 1.0, resample)
+        if len(obs):
+            seen[obs[:, 2].astype(np.intp)] = True
+            resamples += bool(np.all(state["weights"] == state["weights"][0]))
+        path.append(_mean_pose(state))
+    w = np.asarray(state["weights"])
+    landmarks = np.einsum("k,kjd->jd", w, np.asarray(state["means"]))
+    landmarks[~seen] = np.nan
+    err = np.hypot(*(landmarks - data.landmarks).T)
+    pose = align_points(landmarks, data.landmarks)
+    aligned = np.hypot(*(transform_points(landmarks, pose) - data.landmarks).T)
+    return {
+        "path": np.array(path),
+        "landmarks": landmarks,
+        "rmse": float(np.sqrt(np.nanmean(err**2))),
+        "rmse_aligned": float(np.sqrt(np.nanmean(aligned**2))),
+        "alignment": pose,
+        "resamples": int(resamples),
+        "state": state,
+    }
+
+
+def _mean_pose(state) -> np.ndarray:
+    w, p = np.asarray(state["weights"]), np.asarray(state["poses"])
+    return np.array(
+        [w @ p[:, 0], w @ p[:, 1], np.arctan2(w @ np.sin(p[:, 2]), w @ np.cos(p[:, 2]))]
+    )

@@ -1,0 +1,21 @@
+"""Forgets eta: returns likelihood * prior without dividing by p(z).
+
+class: formula
+"""
+
+
+from robolab.validation import as_array, check_probability_vector
+
+
+def bayes_posterior(likelihood, prior):
+    prior = check_probability_vector("prior", prior)
+    if prior.ndim != 1:
+        raise ValueError("prior must be 1-D")
+    likelihood = as_array(
+        "likelihood", likelihood, shape=prior.shape, finite=True, nonnegative=True
+    )
+    joint = likelihood * prior
+    evidence = joint.sum()
+    if not evidence > 0:
+        raise ValueError("p(z) = 0: the measurement is impossible under the prior")
+    return joint

@@ -1,0 +1,22 @@
+"""Translates first, then rotates: R(theta) (p + t) instead of R(theta) p + t.
+
+class: formula
+"""
+
+import numpy as np
+
+from robolab.validation import as_array
+
+
+def transform_points(points, pose):
+    pts = as_array("points", points, ndim=2, finite=True)
+    if pts.shape[1] != 2:
+        raise ValueError("points must have shape (P, 2)")
+    pose = as_array("pose", pose, ndim=(1, 2), finite=True)
+    if pose.shape[-1] != 3:
+        raise ValueError("pose must be (3,) or (N, 3)")
+    c = np.cos(pose[..., 2])[..., None]
+    s = np.sin(pose[..., 2])[..., None]
+
+    px, py = pts[:, 0] + pose[..., 0:1], pts[:, 1] + pose[..., 1:2]
+    return np.stack([c * px - s * py, s * px + c * py], axis=-1)
