@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 
 export MPLBACKEND := Agg
 
-.PHONY: help venv test grade lab bench data lint notebooks clean
+.PHONY: help venv test test-suite test-notebooks grade lab bench data lint notebooks clean
 
 help:
 	@echo "make grade   set up, then grade the example submissions (gradebook in grades/)"
@@ -30,8 +30,15 @@ venv: $(STAMP)
 # (plus pytest and nbval), from their own folder: the labs work without the repository.
 STUDENT_VENV := build/student-venv
 
+# The test suite and the solved notebooks run side by side, one per core; each one's
+# output is printed when it is done (--output-sync), and either failing fails `make test`.
 test: $(STAMP)
+	@$(MAKE) --no-print-directory -j 2 --output-sync=target test-suite test-notebooks
+
+test-suite: $(STAMP)
 	$(BIN)/python -m pytest
+
+test-notebooks: $(STAMP)
 	$(BIN)/robolab solve notebooks/ -o build/solved
 	$(BIN)/python tools/add_figure_audit.py build/solved
 	$(BIN)/robolab release build/student

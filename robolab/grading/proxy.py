@@ -278,11 +278,9 @@ class _Worker:
             memory_bytes=limits.memory_bytes,
             max_processes=limits.max_processes,
         )
-        self.plan.seed_files = {f".matplotlib/{p.name}": str(p) for p in _matplotlib_font_caches()}
         request_r, self.request_w = os.pipe()
         self.response_r, response_w = os.pipe()
         output_r, output_w = os.pipe()
-        config = {"request_fd": request_r, "response_fd": response_w, "plan": self.plan.to_dict()}
         env = {
             "PATH": "/usr/bin:/bin",
             "HOME": str(workdir),
@@ -301,16 +299,7 @@ class _Worker:
             "ROBOLAB_RAYCAST": "numpy",
         }
         try:
-            self.process = subprocess.Popen(
-                [sys.executable, "-I", "-B", "-m", "robolab.grading.worker", _json(config)],
-                stdin=subprocess.DEVNULL,
-                stdout=output_w,
-                stderr=output_w,
-                pass_fds=(request_r, response_w),
-                cwd=workdir,
-                env=env,
-                start_new_session=True,  # its own session and process group, killed as a group
-            )
+            self.process = _launch(self.plan, env, workdir, (request_r, response_w, output_w))
         finally:
             for fd in (request_r, response_w, output_w):
                 os.close(fd)
@@ -464,6 +453,42 @@ class _Worker:
         """Kill, close the pipes, remove the temporary directory; idempotent."""
         self._finalizer()
         self.drainer.join(timeout=5)
+
+
+def _launch(
+    plan: sandbox.SandboxPlan, env: dict[str, str], workdir: Path, pipes: tuple[int, int, int]
+) -> Any:
+    """Fork a warm worker from the zygote (:mod:`robolab.grading.zygote`), else start one cold.
+
+    Either way the worker runs :func:`robolab.grading.worker.main` in its own
+    session, with ``pipes`` (request read end, response and output write ends).
+    """
+    from robolab.grading import warm
+
+    for attempt in range(2):
+        workers = warm.shared()
+        if workers is None:
+            break
+        try:
+            return workers.spawn({"plan": plan.to_dict(), "env": env, "cwd": str(workdir)}, pipes)
+        except warm.ZygoteError as exc:
+            warm.reset_shared(None)  # it died or broke: the next attempt starts a fresh one
+            if attempt:
+                warnings.warn(f"robolab grading: this worker starts cold: {exc}", stacklevel=3)
+    # Cold: a fresh interpreter, seeded with the font cache so it does not rebuild it.
+    plan.seed_files = {f".matplotlib/{p.name}": str(p) for p in _matplotlib_font_caches()}
+    request_r, response_w, output_w = pipes
+    config = {"request_fd": request_r, "response_fd": response_w, "plan": plan.to_dict()}
+    return subprocess.Popen(
+        [sys.executable, "-I", "-B", "-m", "robolab.grading.worker", _json(config)],
+        stdin=subprocess.DEVNULL,
+        stdout=output_w,
+        stderr=output_w,
+        pass_fds=(request_r, response_w),
+        cwd=workdir,
+        env=env,
+        start_new_session=True,  # its own session and process group, killed as a group
+    )
 
 
 def _kill_tree(process: subprocess.Popen, uid: int | None) -> None:

@@ -20,9 +20,11 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
+from typing import Any
 
 from tqdm import tqdm
 
+from robolab.grading import warm
 from robolab.grading.labs import LabError, find_lab, lab_of_notebook, project_root
 
 __all__ = [
@@ -197,19 +199,14 @@ def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | No
         MPLBACKEND="Agg",
         PYTHONDONTWRITEBYTECODE="1",
     )
+    workers = warm.shared()  # one warm worker zygote serves every pytest run of this process
+    if workers is not None:
+        env[warm.FD_VARIABLE] = str(workers.fileno())
     start = time.monotonic()
     with log.open("wb") as out, _LIVE_LOCK:
         if _STOPPING.is_set():
             return None, 0.0
-        proc = subprocess.Popen(
-            cmd,
-            cwd=cwd,
-            env=env,
-            stdin=subprocess.DEVNULL,
-            stdout=out,
-            stderr=subprocess.STDOUT,
-            start_new_session=True,
-        )
+        proc = _launch(cmd, cwd, env, out.fileno(), workers)
         _LIVE.add(proc)
     try:
         code: int | None = proc.wait(timeout=timeout)
@@ -221,6 +218,32 @@ def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | No
         with _LIVE_LOCK:
             _LIVE.discard(proc)
     return code, time.monotonic() - start
+
+
+def _launch(cmd: list[str], cwd: Path, env: dict, out: int, workers: warm.Zygote | None) -> Any:
+    """Fork the pytest run from the grader zygote (pytest and numpy imported), else start it.
+
+    Either way it runs in its own session (killed as a process group), output to ``out``.
+    """
+    grader = None
+    if workers is not None and cmd[:3] == [sys.executable, "-m", "pytest"]:
+        grader = warm.shared_grader(str(cwd), env)
+    if grader is not None:
+        request = {"args": cmd[3:], "env": env, "cwd": str(cwd), "keep": [workers.fileno()]}
+        try:
+            return grader.spawn(request, (out,))
+        except warm.ZygoteError as exc:
+            print(f"robolab grade: starting pytest cold: {exc}", file=sys.stderr)
+    return subprocess.Popen(
+        cmd,
+        cwd=cwd,
+        env=env,
+        stdin=subprocess.DEVNULL,
+        stdout=out,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+        pass_fds=() if workers is None else (workers.fileno(),),
+    )
 
 
 def _tail(path: Path, chars: int = 1500) -> str:
