@@ -1,4 +1,4 @@
-"""The fiducial robot of the FastSLAM lab (lab 07; a MATLAB ``Robot.m`` in other versions of this lab).
+"""The fiducial robot of the FastSLAM lab (lab 07; ``Robot.m`` in MATLAB versions of the lab).
 
 A unicycle robot drives a closed loop around a handful of fiducials (visual
 markers with known identities) and reports, at every step, the command it was
@@ -247,7 +247,7 @@ class FiducialRun:
 
 
 class FiducialRobot:
-    """The fiducial robot of the FastSLAM lab, driven like MATLAB's ``Robot.m`` in other versions of the lab.
+    """The fiducial robot of the FastSLAM lab, driven like a MATLAB ``Robot.m``.
 
     Use it as::
 

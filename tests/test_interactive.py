@@ -22,8 +22,10 @@ def _close():
 def test_without_a_kernel_it_draws_once_at_the_defaults():
     """Outside IPython there are no widgets: the drawing runs once with the slider values."""
     calls = []
-    out = interactive.interact_or_static(lambda a, n: calls.append((a, n)),
-                                         a=Slider(0, 1, 0.1, 0.3), n=Slider(1, 9, 1, 4, integer=True))
+    out = interactive.interact_or_static(
+        lambda a, n: calls.append((a, n)),
+        a=Slider(0, 1, 0.1, 0.3), n=Slider(1, 9, 1, 4, integer=True),
+    )
     assert out is None and calls == [(0.3, 4)] and isinstance(calls[0][1], int)
 
 

@@ -43,7 +43,7 @@ from pathlib import Path
 
 from robolab.grading.labs import LabError, find_lab, lab_of_notebook, project_root
 from robolab.grading.late import LatePolicy, parse_time
-from robolab.grading.protection import describe_protection
+from robolab.grading.protection import UnprotectedAnswers, describe_protection
 from robolab.grading.report import render_feedback
 from robolab.grading.roster import RosterError
 from robolab.grading.runner import DEFAULT_TIMEOUT, SubmissionResult, grade_submission
@@ -423,7 +423,10 @@ def run(
             "extra_data": {"refused": exposed},
         }
         _write(results, data)
-        raise PermissionError("the answers are readable by the worker: " + "; ".join(exposed))
+        reasons = "; ".join(exposed)
+        raise UnprotectedAnswers(
+            f"robolab refuses to grade: the worker could read the answers: {reasons}"
+        )
     started = time.monotonic()
     try:
         notebook = find_submission(submission, lab)

@@ -80,7 +80,7 @@ def probe(paths, tcp_port, udp_port):
 """
 
 
-class UnprotectedAnswers(RuntimeError):
+class UnprotectedAnswers(RuntimeError, PermissionError):
     """Grading refused: the worker could read the reference solutions or hidden tests."""
 
 

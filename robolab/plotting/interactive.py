@@ -44,7 +44,7 @@ class Slider:
 
     def __post_init__(self) -> None:
         if not self.low <= self.value <= self.high or self.step <= 0:
-            raise ValueError(f"slider {self.description!r}: need low <= value <= high and step > 0, "
+            raise ValueError(f"slider {self.description!r}: need low <= value <= high, step > 0; "
                              f"got {self.low}, {self.value}, {self.high}, step {self.step}")
 
     def widget(self):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from robolab.maps import OccupancyGrid
-from robolab.raycast import cast_rays
+from robolab.raycast import cast_rays_reference as cast_rays  # byte-identical data everywhere
 from robolab.sim.motion import Controller, follow_route
 from robolab.sim.run import _check_clearance
 from robolab.sim.runs import SEEDS

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import json
 from pathlib import Path
 
 import pytest
@@ -74,7 +75,9 @@ def test_gradescope_refuses_to_grade_where_answers_are_readable(unisolated, tmp_
     results = tmp_path / "results.json"
     with pytest.raises(UnprotectedAnswers):
         gradescope.run("demo", tmp_path, results, root=REPOSITORY)
-    assert not results.exists()
+    # Nothing was graded: Gradescope shows the student why, with no test results.
+    data = json.loads(results.read_text())
+    assert data["tests"] == [] and data["score"] == 0 and "not set up safely" in data["output"]
 
 
 def test_a_probe_that_cannot_start_is_a_problem():

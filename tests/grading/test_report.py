@@ -85,7 +85,8 @@ def test_feedback_says_what_failed_in_words():
     # a stub is named once, not as a list of failing checks
     assert "Not implemented yet: `mean_pose` still raises NotImplementedError." in text
     assert "cell 9" not in text
-    assert "- `cell 4` (`syntax`):" in text and "invalid syntax (line 2)" in text
+    # cell_index is 0-based; a student counts cells from 1
+    assert "- `cell 5` (`syntax`):" in text and "invalid syntax (line 2)" in text
     assert "nodeid" not in text and "test_demo.py" not in text
 
 
