@@ -119,3 +119,15 @@ def test_a_matplotlib_object_left_as_the_cell_value_is_flagged():
     fig, ax = good_figure()
     assert audit_value(ax.legend()) is not None
     assert audit_value(ax.plot([0], [0])) is not None
+
+
+@pytest.mark.parametrize(
+    "cell, quiet",
+    [("ax.legend();", True), ("ax.legend();  # keep it quiet", True), ("ax.legend()", False),
+     ("x = 1\nax.legend()\n", False), ("s = 'a;'", False), ("", False)],
+)
+def test_a_semicolon_ends_the_display_like_jupyter(cell, quiet):
+    """A trailing `;` (comments after it allowed) hides the value, as in Jupyter."""
+    from robolab.plotting.audit import _quiet
+
+    assert _quiet(cell) is quiet

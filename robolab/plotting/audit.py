@@ -268,6 +268,25 @@ def audit_value(value: Any) -> str | None:
     return None
 
 
+def _quiet(cell: str) -> bool:
+    """True when Jupyter shows no value for the cell: its last code token is ``;``.
+
+    (Newer IPython versions keep the last expression's value in ``result.result`` even
+    when the semicolon suppresses its display, so the value alone does not tell.)
+    """
+    import io
+    import tokenize
+
+    try:
+        tokens = list(tokenize.generate_tokens(io.StringIO(cell).readline))
+    except (tokenize.TokenError, SyntaxError, IndentationError):
+        return cell.rstrip().endswith(";")
+    skip = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.ENDMARKER,
+            tokenize.INDENT, tokenize.DEDENT}
+    code = [t for t in tokens if t.type not in skip]
+    return bool(code) and code[-1].string == ";"
+
+
 class _Auditor:
     def __init__(self, shell: Any) -> None:
         self.shell = shell
@@ -283,7 +302,7 @@ class _Auditor:
         self.cell += 1
         first = (result.info.raw_cell or "").strip().splitlines()[:1]
         where = f"cell {self.cell} ({first[0][:50]!r})" if first else f"cell {self.cell}"
-        if (why := audit_value(result.result)) is not None:
+        if not _quiet(result.info.raw_cell or "") and (why := audit_value(result.result)):
             self.problems.append(f"{where}: {why}")
         for number in plt.get_fignums():
             fig = plt.figure(number)
