@@ -44,6 +44,7 @@ from robolab.grading.notebook import CellProblem, LoadedNotebook, load_notebook
 from robolab.grading.worker import HEADER
 
 __all__ = [
+    "reference_budget",
     "IsolationWarning",
     "Limits",
     "MissingFunction",
@@ -58,6 +59,11 @@ __all__ = [
 #: Without ``Limits.total_wall_seconds``, a submission's calls may take this many per-call
 #: wall limits in total.
 BUDGET_CALLS = 5
+#: A lab whose hidden tests state ``REFERENCE_SECONDS`` (the reference solution's call time)
+#: gives a submission this many times that, at least :data:`MIN_BUDGET_SECONDS` (and never
+#: more than :data:`BUDGET_CALLS` per-call limits): see :func:`reference_budget`.
+BUDGET_FACTOR = 8.0
+MIN_BUDGET_SECONDS = 60.0
 
 #: Largest message accepted from a worker (a result, in pickled form): the codec's limit.
 MAX_MESSAGE_BYTES = codec.LIMITS.max_bytes
@@ -203,8 +209,8 @@ class Limits:
     total_wall_seconds : float or None
         Wall-clock time of all of a submission's calls together; once spent,
         its remaining calls fail at once. None: :data:`BUDGET_CALLS` times
-        ``wall_seconds`` (a hidden test module sets it to a few times the
-        reference solution's time through ``GRADING_LIMITS``).
+        ``wall_seconds``; a lab whose hidden tests state the reference's time
+        (``REFERENCE_SECONDS``) gets :func:`reference_budget` of it.
     """
 
     cpu_seconds: float = 30.0
@@ -220,6 +226,18 @@ class Limits:
         if self.total_wall_seconds is not None:
             return self.total_wall_seconds
         return BUDGET_CALLS * self.wall_seconds
+
+
+def reference_budget(limits: Limits, reference_seconds: float) -> float:
+    """A submission's total call time: a few times the reference's, bounded both ways.
+
+    ``max(MIN_BUDGET_SECONDS, BUDGET_FACTOR * reference_seconds)``, but never more than the
+    default :attr:`Limits.budget_seconds` (``BUDGET_CALLS`` per-call wall limits). The floor
+    keeps a correct but slower solution (or a loaded grading machine) from losing points.
+    """
+    if not reference_seconds > 0:
+        raise ValueError(f"reference_seconds must be > 0, got {reference_seconds!r}")
+    return min(limits.budget_seconds, max(MIN_BUDGET_SECONDS, BUDGET_FACTOR * reference_seconds))
 
 
 # --- output ------------------------------------------------------------------------------------

@@ -8,7 +8,9 @@ a proxy to the student's notebook running in an isolated worker process.
 A hidden test module may set ``GRADING_LIMITS = {"cpu_seconds": 2, ...}`` (the
 fields of :class:`robolab.grading.proxy.Limits`) to tighten or relax the
 worker's per-call limits for its lab: a lab of microsecond functions should not
-let a hanging submission cost a minute per test.
+let a hanging submission cost a minute per test. ``REFERENCE_SECONDS`` (the
+reference solution's grading time) sets the submission's total time budget to a
+few times that (:func:`robolab.grading.proxy.reference_budget`).
 
 Every hidden test carries the ``grades`` marker naming the exercise function it
 grades and its points (a positive number). A test under ``tests/labs/`` without
@@ -123,9 +125,13 @@ def lab(request: pytest.FixtureRequest):
     notebook = request.config.getoption("--notebook")
     if notebook is None:
         return importlib.import_module(f"solutions.{name}")
-    from robolab.grading.proxy import Limits, open_submission  # the isolated worker
+    from robolab.grading.proxy import Limits, open_submission, reference_budget
 
-    overrides = getattr(request.module, "GRADING_LIMITS", None)
+    overrides = dict(getattr(request.module, "GRADING_LIMITS", None) or {})
+    reference = getattr(request.module, "REFERENCE_SECONDS", None)
+    if reference is not None and "total_wall_seconds" not in overrides:
+        # the submission's total call time: a few times the reference solution's
+        overrides["total_wall_seconds"] = reference_budget(Limits(**overrides), reference)
     proxy = open_submission(notebook, lab=name, limits=Limits(**overrides) if overrides else None)
     request.addfinalizer(proxy.close)
     request.config.stash[_problems_key].extend(_plain(p) for p in getattr(proxy, "problems", []))

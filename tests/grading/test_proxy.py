@@ -297,3 +297,25 @@ def test_a_forgotten_proxy_does_not_leave_its_worker_running(tmp_path):
     gc.collect()
     assert process.poll() is not None
     assert not base.exists()
+
+
+def test_the_total_budget_is_a_few_times_the_reference_within_bounds():
+    """reference_budget: 8x the reference, at least 60 s, never above 5 per-call limits."""
+    from robolab.grading.proxy import Limits, reference_budget
+
+    assert reference_budget(Limits(wall_seconds=60.0), 15.0) == 120.0
+    assert reference_budget(Limits(wall_seconds=60.0), 1.0) == 60.0  # the floor
+    assert reference_budget(Limits(wall_seconds=5.0), 15.0) == 25.0  # the default cap
+    with pytest.raises(ValueError):
+        reference_budget(Limits(), 0.0)
+
+
+def test_every_lab_states_its_reference_time():
+    """Each lab's hidden tests carry REFERENCE_SECONDS, so its budget follows the reference."""
+    import importlib
+
+    from robolab.grading.labs import discover_labs
+
+    for lab in discover_labs():
+        module = importlib.import_module(f"tests.labs.test_{lab.name}")
+        assert getattr(module, "REFERENCE_SECONDS", 0) > 0, f"tests/labs/test_{lab.name}.py"

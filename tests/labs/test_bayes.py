@@ -20,6 +20,10 @@ import pytest
 grades = pytest.mark.grades
 requires = pytest.mark.requires
 
+#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
+#: idle machine, 2026-12-01): a submission gets a few times that in total.
+REFERENCE_SECONDS = 2.1
+
 #: A student's filter step may correct with their own bayes_posterior.
 USES = {"bayes_filter_step": ["bayes_posterior"]}
 

@@ -38,6 +38,10 @@ grades = pytest.mark.grades
 requires = pytest.mark.requires
 
 COMPONENTS = ["p_hit", "p_short", "p_max", "p_rand"]
+#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
+#: idle machine, 2026-12-01): a submission gets a few times that in total.
+REFERENCE_SECONDS = 2.0
+
 #: A student's model calls their own component densities; the map calls their model.
 USES = {
     "beam_range_finder_model": COMPONENTS,

@@ -11,6 +11,10 @@ import math
 import numpy as np
 import pytest
 
+#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
+#: idle machine, 2026-12-01): a submission gets a few times that in total.
+REFERENCE_SECONDS = 0.4
+
 # Every demo function takes microseconds: a call that needs seconds is hanging.
 GRADING_LIMITS = {"cpu_seconds": 2.0, "wall_seconds": 5.0}
 

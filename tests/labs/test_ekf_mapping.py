@@ -29,6 +29,10 @@ from robolab.raycast import cast_rays
 
 ANGLES = np.deg2rad(10.0 * np.arange(36))  # the seed's 36 beams
 ZMAX = 20.0
+#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
+#: idle machine, 2026-12-01): a submission gets a few times that in total.
+REFERENCE_SECONDS = 3.9
+
 #: Exercises each exercise is likely to call (the feedback names them when they fail).
 USES = {
     "update_map": ["inverse_sensor_model"],

@@ -26,6 +26,10 @@ from scipy.stats import multivariate_normal
 from robolab.fiducials import FiducialRobot
 
 requires = pytest.mark.requires
+#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
+#: idle machine, 2026-12-01): a submission gets a few times that in total.
+REFERENCE_SECONDS = 2.4
+
 #: Exercises each exercise is likely to call (the feedback names them when they fail).
 USES = {
     "fastslam_step": ["predict_poses", "update_landmark", "h", "h_jacobian"],

@@ -35,6 +35,10 @@ from robolab.maps import load_map
 
 grades = pytest.mark.grades
 
+#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
+#: idle machine, 2026-12-01): a submission gets a few times that in total.
+REFERENCE_SECONDS = 1.1
+
 # The functions take microseconds; a hanging submission should not cost a minute per test.
 GRADING_LIMITS = {"cpu_seconds": 10.0, "wall_seconds": 20.0}
 

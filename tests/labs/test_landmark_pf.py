@@ -35,6 +35,10 @@ SEED_PATH = np.array(
     [[0.0, 60.0], [np.pi / 3, 30.0], [np.pi / 4, 30.0], [np.pi / 4, 20.0], [np.pi / 4, 40.0]]
 )
 SECTION_F_NOISE = {"forward_noise": 5.0, "turn_noise": 0.1, "sensor_noise": 5.0}
+#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
+#: idle machine, 2026-12-01): a submission gets a few times that in total.
+REFERENCE_SECONDS = 0.9
+
 #: A student's filter calls their own three functions.
 USES = {"particle_filter": ["move_particles", "measurement_probability", "low_variance_resample"]}
 requires = pytest.mark.requires

@@ -35,6 +35,10 @@ from robolab.raycast import cast_rays
 grades = pytest.mark.grades
 requires = pytest.mark.requires
 
+#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
+#: idle machine, 2026-12-01): a submission gets a few times that in total.
+REFERENCE_SECONDS = 15.3
+
 #: Exercises each exercise is likely to call (the feedback names them when they fail).
 USES = {
     "mcl_step": [

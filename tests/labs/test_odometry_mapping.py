@@ -28,6 +28,10 @@ from robolab.geometry import compose, wrap_angle
 from robolab.maps import OccupancyGrid, load_map
 
 RNG_SEED = 404
+#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
+#: idle machine, 2026-12-01): a submission gets a few times that in total.
+REFERENCE_SECONDS = 6.7
+
 #: Exercises each exercise is likely to call (the feedback names them when they fail).
 USES = {"counting_map_update": ["beam_cells"]}
 requires = pytest.mark.requires
