@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 
 export MPLBACKEND := Agg
 
-.PHONY: help venv test test-suite test-notebooks grade lab bench data lint notebooks clean
+.PHONY: help venv test test-suite test-grading test-rest test-notebooks grade lab bench data lint notebooks clean
 
 help:
 	@echo "make grade   set up, then grade the example submissions (gradebook in grades/)"
@@ -30,13 +30,21 @@ venv: $(STAMP)
 # (plus pytest and nbval), from their own folder: the labs work without the repository.
 STUDENT_VENV := build/student-venv
 
-# The test suite and the solved notebooks run side by side, one per core; each one's
-# output is printed when it is done (--output-sync), and either failing fails `make test`.
+# The test suite (in two halves: the grader's tests, everything else) and the solved
+# notebooks run side by side on the two cores; each one's output is printed when it is
+# done (--output-sync), and any failing fails `make test`. `make test-suite` runs the
+# whole suite in one pytest.
 test: $(STAMP)
-	@$(MAKE) --no-print-directory -j 2 --output-sync=target test-suite test-notebooks
+	@$(MAKE) --no-print-directory -j 2 --output-sync=target test-grading test-rest test-notebooks
 
 test-suite: $(STAMP)
 	$(BIN)/python -m pytest
+
+test-grading: $(STAMP)
+	$(BIN)/python -m pytest tests/grading
+
+test-rest: $(STAMP)
+	$(BIN)/python -m pytest --ignore=tests/grading
 
 test-notebooks: $(STAMP)
 	$(BIN)/robolab solve notebooks/ -o build/solved
