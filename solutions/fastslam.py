@@ -464,24 +464,30 @@ def _last_dim(name, value, n) -> np.ndarray:
     return arr
 
 
-def _inv2(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Inverse and log-determinant of a stack of 2 x 2 matrices, in closed form.
+def _inv2_entries(a00, a01, a10, a11):
+    """Entries of the inverse and the log-determinant of 2 x 2 matrices given entry-wise.
 
     Each matrix is scaled by its largest entry first, so that entries of 1e-300
     or 1e200 neither underflow nor overflow in the determinant:
     ``inv(s A') = inv(A') / s`` and ``log|s A'| = 2 log s + log|A'|``.
+    Returns ``((i00, i01, i10, i11), logdet)``.
     """
-    s = np.abs(a).max(axis=(-2, -1))
+    s = np.maximum(np.maximum(np.abs(a00), np.abs(a01)), np.maximum(np.abs(a10), np.abs(a11)))
     s = np.where(s > 0, s, 1.0)
-    b = a / s[..., None, None]
-    det = b[..., 0, 0] * b[..., 1, 1] - b[..., 0, 1] * b[..., 1, 0]
-    inv = np.empty_like(b)
-    inv[..., 0, 0] = b[..., 1, 1]
-    inv[..., 1, 1] = b[..., 0, 0]
-    inv[..., 0, 1] = -b[..., 0, 1]
-    inv[..., 1, 0] = -b[..., 1, 0]
+    b00, b01, b10, b11 = a00 / s, a01 / s, a10 / s, a11 / s
+    det = b00 * b11 - b01 * b10
     with np.errstate(divide="ignore", invalid="ignore"):
-        return inv / (det * s)[..., None, None], 2.0 * np.log(s) + np.log(det)
+        f = 1.0 / (det * s)
+        return (b11 * f, -b01 * f, -b10 * f, b00 * f), 2.0 * np.log(s) + np.log(det)
+
+
+def _inv2(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse and log-determinant of a stack of 2 x 2 matrices (:func:`_inv2_entries`)."""
+    (i00, i01, i10, i11), logdet = _inv2_entries(a[..., 0, 0], a[..., 0, 1], a[..., 1, 0],
+                                                  a[..., 1, 1])
+    inv = np.empty(a.shape, dtype=np.result_type(a, float))
+    inv[..., 0, 0], inv[..., 0, 1], inv[..., 1, 0], inv[..., 1, 1] = i00, i01, i10, i11
+    return inv, logdet
 
 
 def _ekf_update(mu, sigma, zz, p, qt):
@@ -494,8 +500,7 @@ def _ekf_update(mu, sigma, zz, p, qt):
     :math:`\mu' = \mu + K e`, :math:`\Sigma' = \Sigma - (K H) \Sigma`
     (symmetrized), :math:`\ln w = -\tfrac12 e^T Q^{-1} e - \ln 2\pi - \tfrac12 \ln|Q|`.
     The geometry uses ``hypot`` (no overflow of the squared range) and :math:`Q` is
-    inverted after scaling by its largest entry (no under- or overflow of its
-    determinant), as :func:`_inv2` does.
+    inverted by :func:`_inv2_entries` (scaled: no under- or overflow of its determinant).
     """
     dx = mu[..., 0] - p[..., 0]
     dy = mu[..., 1] - p[..., 1]
@@ -512,19 +517,12 @@ def _ekf_update(mu, sigma, zz, p, qt):
     # P = Sigma H^T
     p00, p01 = s00 * a + s01 * b, s00 * c + s01 * d
     p10, p11 = s10 * a + s11 * b, s10 * c + s11 * d
-    # Q = H P + Q_t, scaled by its largest entry before the determinant and inverse
+    # Q = H P + Q_t, inverted after scaling by its largest entry (_inv2_entries)
     q00 = a * p00 + b * p10 + qt[0, 0]
     q01 = a * p01 + b * p11 + qt[0, 1]
     q10 = c * p00 + d * p10 + qt[1, 0]
     q11 = c * p01 + d * p11 + qt[1, 1]
-    scale = np.maximum(np.maximum(np.abs(q00), np.abs(q01)), np.maximum(np.abs(q10), np.abs(q11)))
-    scale = np.where(scale > 0, scale, 1.0)
-    u00, u01, u10, u11 = q00 / scale, q01 / scale, q10 / scale, q11 / scale
-    det = u00 * u11 - u01 * u10
-    with np.errstate(divide="ignore", invalid="ignore"):
-        i00, i01, i10, i11 = (u11 / det / scale, -u01 / det / scale,
-                              -u10 / det / scale, u00 / det / scale)
-        logdet = 2.0 * np.log(scale) + np.log(det)
+    (i00, i01, i10, i11), logdet = _inv2_entries(q00, q01, q10, q11)
     # K = P Q^-1
     k00, k01 = p00 * i00 + p01 * i10, p00 * i01 + p01 * i11
     k10, k11 = p10 * i00 + p11 * i10, p10 * i01 + p11 * i11
