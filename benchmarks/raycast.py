@@ -16,14 +16,19 @@ Four workloads, 1000 poses in free space x 60 beams each (fixed seeds):
   side (about 16 % occupied), range 10 m.
 
 Per workload, measured in the same run and interleaved (one call of each
-contender per round, best of ``REPEATS`` rounds, process CPU time):
+contender per round, best of ``REPEATS`` rounds, process CPU time), twice:
+with *cold* caches (64 MiB read and written before every timed call, so no
+contender finds its data, or inherits another's, in any cache) and with *warm*
+caches (every timed call follows an untimed call of itself, as when one map is
+cast on over and over with nothing else in between). A particle filter's step
+lies between the two: other work runs between its casts.
 
 * ``cast_rays`` with the compiled kernel (backend ``numba``), the default;
 * the same with the numpy fallback (backend ``numpy``);
 * range_libc's CDDT (``PyCDDTCast``, 108 angle bins as in range_libc's
   test.py), ``calc_range_repeat_angles``, clipped to the range.
 
-Ratios are CDDT's time over ours (> 1: ours is faster). The first-call build
+Ratios are CDDT's time over the compiled kernel's (> 1: ours is faster). The first-call build
 (the jump fields of one grid; CDDT's compressed table) is timed the same way.
 The compiled kernel's one-time start-up per process (``import numba`` and
 loading the kernels from numba's cache) is measured in a child process and
@@ -51,7 +56,7 @@ from robolab import raycast
 from robolab.maps import OccupancyGrid, load_map
 from robolab.raycast import RayCaster
 
-N_POSES, N_BEAMS, REPEATS, CHECK_RAYS = 1000, 60, 7, 2000
+N_POSES, N_BEAMS, REPEATS, CHECK_RAYS = 1000, 60, 9, 2000
 THETA_BINS = 108
 REAL_MAP = Path(__file__).resolve().parents[2] / "shared" / "data" / "olin_ac109_1" / "ac109_1.yaml"
 
@@ -185,9 +190,9 @@ def main() -> None:
             f"one-time start-up per process (import numba, load kernels): {startup_seconds():.2f} s"
         )
     head = (
-        f"{'map':<19} {'range':>5} | {'cast ms: numba':>14} {'numpy':>7} {'CDDT':>7}"
-        f" | {'CDDT/numba':>10} {'numpy/numba':>11} | {'build ms: numba':>15} {'numpy':>7}"
-        f" {'CDDT':>7} | {'CDDT off >1 cell':>16}"
+        f"{'map':<19} {'range':>5} | {'cold ms: numba':>14} {'CDDT':>6} {'ratio':>6}"
+        f" | {'warm ms: numba':>14} {'CDDT':>6} {'ratio':>6} {'numpy':>6}"
+        f" | {'build ms: numba':>15} {'numpy':>7} {'CDDT':>7} | {'CDDT off >1 cell':>16}"
     )
     print(head)
     print("-" * len(head))
@@ -208,7 +213,10 @@ def main() -> None:
         if rlc is not None:
             made["cddt"].prepare(poses, angles)
             casts["cddt"] = made["cddt"].cast
-        best = timing.interleaved(casts, REPEATS)
+        cold = timing.interleaved(
+            {k: f for k, f in casts.items() if k != "numpy"}, REPEATS, timing.flush_caches
+        )
+        warm = timing.interleaved(casts, REPEATS, lambda fn: fn())
 
         # exactness: both backends against the per-ray Python loop on a subset of rays
         occ = grid.occupied.tolist()
@@ -233,14 +241,16 @@ def main() -> None:
         def ms(key, table):
             return f"{table[key] * 1e3:.1f}" if key in table else "-"
 
-        def ratio(num, den, best=best):
-            return f"{best[num] / best[den]:.2f}x" if num in best and den in best else "-"
+        def ratio(table):  # CDDT's time over ours: > 1, ours is faster
+            if not {"cddt", "numba"} <= set(table):
+                return "-"
+            return f"{table['cddt'] / table['numba']:.2f}x"
 
         print(
-            f"{name:<19} {max_range:>4.0f}m | {ms('numba', best):>14} {ms('numpy', best):>7}"
-            f" {ms('cddt', best):>7} | {ratio('cddt', 'numba'):>10} {ratio('numpy', 'numba'):>11}"
-            f" | {ms('numba', build):>15} {ms('numpy', build):>7} {ms('cddt', build):>7}"
-            f" | {off:>16}"
+            f"{name:<19} {max_range:>4.0f}m | {ms('numba', cold):>14} {ms('cddt', cold):>6}"
+            f" {ratio(cold):>6} | {ms('numba', warm):>14} {ms('cddt', warm):>6} {ratio(warm):>6}"
+            f" {ms('numpy', warm):>6} | {ms('numba', build):>15} {ms('numpy', build):>7}"
+            f" {ms('cddt', build):>7} | {off:>16}"
         )
     print(f"after: {timing.load_average()}")
 

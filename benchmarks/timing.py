@@ -85,21 +85,40 @@ def best_of(fn: Callable[..., Any], repeats: int, *args: Any, **kwargs: Any) -> 
     return Timing(wall, cpu)
 
 
-def interleaved(fns: dict, repeats: int) -> dict:
+def interleaved(fns: dict, repeats: int, before=None) -> dict:
     """Best process-CPU seconds of each function of ``fns``, calling them in turn each round.
 
     Interleaving (one call of every contender per round, ``repeats`` rounds) gives
     each the same share of the machine's noise, so their ratios are fair on a shared host.
+    ``before(fn)``, when given, runs untimed before each timed call: :func:`flush_caches`
+    (every contender starts from cold caches) or ``lambda fn: fn()`` (every contender
+    finds its own data in the caches), so that no contender inherits the caches of the
+    one called before it.
     """
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats}")
     best = dict.fromkeys(fns, float("inf"))
     for _ in range(repeats):
         for key, fn in fns.items():
+            if before is not None:
+                before(fn)
             c0 = time.process_time()
             fn()
             best[key] = min(best[key], time.process_time() - c0)
     return best
+
+
+_FLUSH: list = []
+
+
+def flush_caches(_fn=None) -> None:
+    """Evict this core's caches and the shared last-level cache: read and write 64 MiB."""
+    import numpy as np
+
+    if not _FLUSH:
+        _FLUSH.append(np.ones(64 << 17))  # 64 MiB of float64, twice this machine's L3
+    junk = _FLUSH[0]
+    junk[::8] += junk.sum() * 0.0  # a read of every line, then a write of every line
 
 
 if __name__ == "__main__":

@@ -11,8 +11,9 @@ Two kernels, both plain loops that numba compiles once (and caches on disk):
   chessboard distance from every cell to the nearest obstacle cell *ahead*,
   by the largest-empty-square recurrence (one raster pass per quadrant);
 * :func:`cast`: every ray's exact Amanatides-Woo traversal, accelerated by
-  safe jumps over those fields (no cap on the jump), eight rays in flight at
-  a time so that their memory look-ups overlap.
+  safe jumps over those fields (no cap on the jump), four rays in flight at
+  a time, each held in registers, with the next cell of each prefetched, so
+  that their memory look-ups overlap.
 
 The semantics, the safety argument and the references are in the docstring
 of :mod:`robolab.raycast`.
@@ -23,7 +24,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 #: Field codes are one byte: 0 marks an obstacle, ``v`` in 1..127 is the distance
 #: ``D = v`` itself, and ``v`` in 128..255 stands for ``D >= 128 + 32 (v - 128)``
@@ -33,6 +37,7 @@ LINEAR, STEP = 128, 32
 FIELD_MAX = LINEAR + STEP * (255 - LINEAR)
 #: ``DECODE[v]``: the distance ``D`` (cells) that code ``v`` guarantees.
 DECODE = np.array([v if v < LINEAR else LINEAR + STEP * (v - LINEAR) for v in range(256)])
+DECODE_F = DECODE.astype(np.float64)
 
 
 @njit(cache=True, nogil=True)
@@ -92,14 +97,40 @@ def quadrant_fields(occ):  # pragma: no cover - compiled (run through the tests)
     return out
 
 
-#: Rays traced together: their field look-ups are independent, so the processor
-#: overlaps their cache misses (the loop is latency-bound, one ray at a time).
-LANES = 8
+#: Rays traced together, each in registers: their field look-ups are independent,
+#: so the processor overlaps their latencies (one ray alone is a chain of
+#: dependent loads). Four lanes, written out in :func:`cast`, were faster than the
+#: eight held in arrays of the previous kernel on every map of benchmarks/raycast.py;
+#: six or eight register lanes gain only on the 2000 x 2000 map and lose on the rest.
+LANES = 4
+
+
+@intrinsic
+def _prefetch(typingctx, array, index):  # pragma: no cover - compiled
+    """Ask the processor to load ``array[index]`` into its caches; no effect on results.
+
+    Issued as soon as a ray's next cell is known, so that the look-up is in
+    cache by the time the ray's lane comes round again (the large maps' fields
+    do not fit in the caches, and each jump lands on an unrelated line).
+    """
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = cgutils.get_item_pointer(context, builder, aryty, ary, [args[1]], wraparound=False)
+        i8p, i32 = ir.IntType(8).as_pointer(), ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
+        fn = builder.module.declare_intrinsic("llvm.prefetch", [i8p], fnty)
+        # read, high temporal locality, data cache
+        builder.call(fn, [builder.bitcast(ptr, i8p), i32(0), i32(3), i32(1)])
+        return context.get_dummy_value()
+
+    return types.void(array, index), codegen
 
 
 @njit(cache=True, nogil=True)
-def cast(fields, uv, heading, angles, limit, h, w):  # pragma: no cover - compiled
-    """Distances in cells of every ray, or -1 where the ray hits nothing before ``limit``.
+def cast(fields, uv, heading, angles, limit, h, w, res, zmax):  # pragma: no cover - compiled
+    """Ranges in metres: ``min(t res, zmax)`` where a ray enters an obstacle, else ``zmax``.
 
     Parameters
     ----------
@@ -115,133 +146,155 @@ def cast(fields, uv, heading, angles, limit, h, w):  # pragma: no cover - compil
         Range in cells (may be ``inf``).
     h, w : int
         The unpadded map's rows and columns.
+    res, zmax : float
+        Metres per cell; the range reported for a ray that hits nothing.
 
     Returns
     -------
     numpy.ndarray, shape (N, B)
     """
     n, b = uv.shape[0], angles.shape[0]
-    out = np.full(n * b, -1.0)
-    if n * b == 0:
-        return out.reshape(n, b)
+    total = n * b
+    out = np.full(total + 1, zmax)
+    if total == 0:
+        return out[:0].reshape(n, b)
     ca, sa = np.cos(angles), np.sin(angles)
     ch, sh = np.cos(heading), np.sin(heading)
     flat = fields.ravel()
     plane = fields.shape[1] * fields.shape[2]
     wp = fields.shape[2]
-    # per lane: origin, direction, inverse direction, exit offsets, t, t_end, cell, field offset
-    fs = np.empty((12, LANES))
-    ints = np.empty((5, LANES), np.int64)  # ci, ri, sx, sy, koff
-    ray = np.full(LANES, -1, np.int64)
-    nxt = 0
-    live = 0
-    # fill every lane with a ray that enters the map
-    for k in range(LANES):
-        nxt = _refill(k, nxt, n * b, b, uv, ch, sh, ca, sa, limit, h, w, plane, fs, ints, ray, out)
-        if ray[k] >= 0:
-            live += 1
+    geometry = (n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat)
+    # One state tuple per lane (see _start); a lane whose ray index is `total` is idle.
+    i, j = 0, 0
+    s0, i, j = _start(i, j, geometry)
+    s1, i, j = _start(i, j, geometry)
+    s2, i, j = _start(i, j, geometry)
+    s3, i, j = _start(i, j, geometry)
+    live = (s0[0] < total) + (s1[0] < total) + (s2[0] < total) + (s3[0] < total)
     while live > 0:
-        for k in range(LANES):
-            m = ray[k]
-            if m < 0:
-                continue
-            u0, v0, idx, idy, adx, ady, ax, ay, t, t_end, dx, dy = (
-                fs[0, k],
-                fs[1, k],
-                fs[2, k],
-                fs[3, k],
-                fs[4, k],
-                fs[5, k],
-                fs[6, k],
-                fs[7, k],
-                fs[8, k],
-                fs[9, k],
-                fs[10, k],
-                fs[11, k],
-            )
-            ci, ri, sx, sy, koff = ints[0, k], ints[1, k], ints[2, k], ints[3, k], ints[4, k]
-            code = flat[koff + ri * wp + ci]
-            s = int(DECODE[code])
-            done = False
-            if code == 0:
-                out[m] = t
-                done = True
-            else:
-                tx = (ci + ax) * idx  # when the ray leaves the cell's column / row
-                ty = (ri + ay) * idy
-                # Every obstacle ahead is >= s columns or >= s rows away: the ray reaches
-                # none before it has crossed s - 1 more columns or rows (s = 1: one
-                # exact Amanatides-Woo step into the next cell).
-                jx, jy = tx, ty
-                if s > 1:  # (not for s = 1: 0 * inf is NaN along an axis)
-                    jx += (s - 1.0) * adx
-                    jy += (s - 1.0) * ady
-                # padded positions are > 0 on the map, so int() is floor()
-                if jx <= jy:
-                    t = max(jx, t)
-                    ci += sx * s
-                    if s > 1:
-                        ri = int(v0 + t * dy)
-                else:
-                    t = max(jy, t)
-                    ri += sy * s
-                    if s > 1:
-                        ci = int(u0 + t * dx)
-                done = t >= t_end
+        if s0[0] < total:
+            s0, done, hit = _step(flat, wp, s0)
             if done:
-                nxt = _refill(
-                    k, nxt, n * b, b, uv, ch, sh, ca, sa, limit, h, w, plane, fs, ints, ray, out
-                )
-                if ray[k] < 0:
-                    live -= 1
-            else:
-                fs[8, k] = t
-                ints[0, k] = ci
-                ints[1, k] = ri
-    return out.reshape(n, b)
+                out[s0[0]] = min(s0[1] * res, zmax) if hit else zmax
+                s0, i, j = _start(i, j, geometry)
+                live -= s0[0] >= total
+        if s1[0] < total:
+            s1, done, hit = _step(flat, wp, s1)
+            if done:
+                out[s1[0]] = min(s1[1] * res, zmax) if hit else zmax
+                s1, i, j = _start(i, j, geometry)
+                live -= s1[0] >= total
+        if s2[0] < total:
+            s2, done, hit = _step(flat, wp, s2)
+            if done:
+                out[s2[0]] = min(s2[1] * res, zmax) if hit else zmax
+                s2, i, j = _start(i, j, geometry)
+                live -= s2[0] >= total
+        if s3[0] < total:
+            s3, done, hit = _step(flat, wp, s3)
+            if done:
+                out[s3[0]] = min(s3[1] * res, zmax) if hit else zmax
+                s3, i, j = _start(i, j, geometry)
+                live -= s3[0] >= total
+    return out[:total].reshape(n, b)
 
 
 @njit(inline="always")
-def _refill(
-    k, nxt, total, b, uv, ch, sh, ca, sa, limit, h, w, plane, fs, ints, ray, out
-):  # pragma: no cover
-    """Put the next ray that enters the map (from ray ``nxt`` on) into lane ``k``; the new ``nxt``.
+def _start(i, j, geometry):  # pragma: no cover - compiled
+    """The state of the first ray from pose ``i``, beam ``j`` on that enters the map; next ``i, j``.
 
-    Rays that miss the map keep ``out = -1``; ``ray[k] = -1`` when none is left.
+    The state is ``(m, t, t_end, ci, ri, koff, ax, ay, idx, idy, u0, v0, dx,
+    dy)``: the ray's index, its time and end (cells), its cell (padded column,
+    row), the offset of its quadrant's field, and constants of the ray (exit
+    offsets, inverse direction, origin, direction). It is kept this short on
+    purpose: four lanes of it live in registers, and every value more spills
+    (the step signs and ``|1/d|`` are recomputed in :func:`_step` instead).
+    Rays that miss the map keep ``zmax``; when no ray is left the state's
+    index is ``n b`` (an idle lane).
     """
-    while nxt < total:
-        m = nxt
-        nxt += 1
-        i, j = m // b, m % b
+    n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat = geometry
+    while i < n:
+        m = i * b + j
         u0, v0 = uv[i, 0], uv[i, 1]
         # cos and sin of heading + angle by the sum formulas (no trig per ray)
         dx = ch[i] * ca[j] - sh[i] * sa[j]
         dy = sh[i] * ca[j] + ch[i] * sa[j]
+        j += 1
+        if j == b:
+            i, j = i + 1, 0
         idx = math.inf if dx == 0.0 else 1.0 / dx
         idy = math.inf if dy == 0.0 else 1.0 / dy
-        tx_in, tx_out = _slab(u0, dx, idx, 0.0 <= u0 < w, w)
-        ty_in, ty_out = _slab(v0, dy, idy, 0.0 <= v0 < h, h)
-        t = max(tx_in, ty_in, 0.0)
-        t_end = min(tx_out, ty_out, limit)
-        if not t < t_end:
-            continue
-        # padded coordinates: cell (0, 0) of the map is (1, 1)
-        u0 += 1.0
-        v0 += 1.0
-        ints[0, k] = int(min(max(math.floor(u0 + t * dx), 1.0), float(w)))
-        ints[1, k] = int(min(max(math.floor(v0 + t * dy), 1.0), float(h)))
-        ints[2, k] = 1 if dx >= 0 else -1
-        ints[3, k] = 1 if dy >= 0 else -1
-        ints[4, k] = ((1 if dx < 0 else 0) + (2 if dy < 0 else 0)) * plane
-        fs[0, k], fs[1, k], fs[2, k], fs[3, k] = u0, v0, idx, idy
-        fs[4, k], fs[5, k] = abs(idx), abs(idy)
-        fs[6, k] = (1.0 if dx >= 0 else 0.0) - u0
-        fs[7, k] = (1.0 if dy >= 0 else 0.0) - v0
-        fs[8, k], fs[9, k], fs[10, k], fs[11, k] = t, t_end, dx, dy
-        ray[k] = m
-        return nxt
-    ray[k] = -1
-    return nxt
+        if 0.0 <= u0 < w and 0.0 <= v0 < h:
+            # the usual case, a pose on the map: the ray starts at t = 0 in the pose's cell
+            t = 0.0
+            tx_out = ((w if dx > 0.0 else 0.0) - u0) * idx if dx != 0.0 else math.inf
+            ty_out = ((h if dy > 0.0 else 0.0) - v0) * idy if dy != 0.0 else math.inf
+            t_end = min(tx_out, ty_out, limit)
+            ci, ri = int(u0) + 1, int(v0) + 1
+            u0 += 1.0
+            v0 += 1.0
+        else:
+            tx_in, tx_out = _slab(u0, dx, idx, 0.0 <= u0 < w, w)
+            ty_in, ty_out = _slab(v0, dy, idy, 0.0 <= v0 < h, h)
+            t = max(tx_in, ty_in, 0.0)
+            t_end = min(tx_out, ty_out, limit)
+            if not t < t_end:
+                continue
+            # padded coordinates: cell (0, 0) of the map is (1, 1)
+            u0 += 1.0
+            v0 += 1.0
+            ci = int(min(max(math.floor(u0 + t * dx), 1.0), float(w)))
+            ri = int(min(max(math.floor(v0 + t * dy), 1.0), float(h)))
+        koff = ((1 if dx < 0 else 0) + (2 if dy < 0 else 0)) * plane
+        _prefetch(flat, koff + ri * wp + ci)
+        ax = (1.0 if dx >= 0 else 0.0) - u0
+        ay = (1.0 if dy >= 0 else 0.0) - v0
+        state = (m, t, t_end, ci, ri, koff, ax, ay, idx, idy, u0, v0, dx, dy)
+        return state, i, j
+    idle = (n * b, 0.0, 0.0, 1, 1, 0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0)
+    return idle, i, j
+
+
+@njit(inline="always")
+def _step(flat, wp, state):  # pragma: no cover - compiled
+    """One iteration of a ray: ``(new state, done, hit)``.
+
+    The field code of the ray's cell bounds how far it may go: every obstacle
+    ahead is at least ``s = DECODE[code]`` columns or rows away, so the ray
+    reaches none before it has crossed ``s - 1`` more columns or rows than its
+    cell's exit, ``min(t_x + (s - 1) / |d_x|, t_y + (s - 1) / |d_y|)`` (``s = 1``:
+    one exact Amanatides-Woo step into the next cell; code 0: the ray is in an
+    obstacle, a hit at ``t``). Written as selects rather than branches: which
+    case applies is data-dependent, and a mispredicted branch costs more than
+    computing both sides.
+    """
+    m, t, t_end, ci, ri, koff, ax, ay, idx, idy, u0, v0, dx, dy = state
+    sx = 1 if idx > 0.0 else -1  # idx = +inf for dx = 0: the sign _start used for koff, ax
+    sy = 1 if idy > 0.0 else -1
+    adx, ady = abs(idx), abs(idy)
+    code = flat[koff + ri * wp + ci]
+    s = DECODE_F[code]
+    tx = (ci + ax) * idx  # when the ray leaves the cell's column / row
+    ty = (ri + ay) * idy
+    jump = code > 1
+    # (not for s = 1: 0 * inf is NaN along an axis)
+    jx = tx + (s - 1.0) * adx if jump else tx
+    jy = ty + (s - 1.0) * ady if jump else ty
+    along_x = jx <= jy
+    t_new = max(jx, t) if along_x else max(jy, t)
+    step = int(s)
+    # padded positions are > 0 on the map, so int() is floor()
+    c_at = int(u0 + t_new * dx)
+    r_at = int(v0 + t_new * dy)
+    ci_new = ci + sx * step if along_x else (c_at if jump else ci)
+    ri_new = (r_at if jump else ri) if along_x else ri + sy * step
+    hit = code == 0
+    if hit:
+        t_new, ci_new, ri_new = t, ci, ri
+    _prefetch(flat, koff + ri_new * wp + ci_new)
+    done = hit or t_new >= t_end
+    state = (m, t_new, t_end, ci_new, ri_new, koff, ax, ay, idx, idy, u0, v0, dx, dy)
+    return state, done, hit
 
 
 @njit(inline="always")

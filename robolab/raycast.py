@@ -81,8 +81,9 @@ Two implementations of this traversal give the same ranges (up to float
 round-off, ~1e-13 cells):
 
 * ``"numba"`` (the default when numba can be imported): the compiled kernels of
-  :mod:`robolab._raycast_jit`, one ray at a time on one core, eight rays
-  interleaved so that their memory look-ups overlap. Its jump fields are
+  :mod:`robolab._raycast_jit`, one ray at a time on one core, four rays in
+  flight (their states in registers, each one's next cell prefetched) so that
+  their memory look-ups overlap. Its jump fields are
   chessboard distances ``D_q(c) = min max(|di|, |dj|)`` over the obstacles of
   ``Q_q(c)``, built by the largest-empty-square recurrence in one pass per
   quadrant and stored in one byte each (exact up to 127 cells, then rounded
@@ -258,16 +259,15 @@ class RayCaster:
         limit = max_range / res  # may overflow to inf (max_range ~ 1e308): no limit then
         h, w = self._shape
         if self.backend == "numba":
-            t = _jit().cast(self._fields, uv, heading, angles, limit, h, w)
-        else:
-            t = np.empty((n, b))
-            # Chunk whole poses so that each chunk has about _CHUNK rays.
-            per = max(1, _CHUNK // max(b, 1))
-            for i in range(0, n, per):
-                phi = (heading[i : i + per, None] + angles[None, :]).ravel()
-                u0 = np.repeat(uv[i : i + per, 0], b)
-                v0 = np.repeat(uv[i : i + per, 1], b)
-                t[i : i + per] = self._trace(u0, v0, np.cos(phi), np.sin(phi), limit).reshape(-1, b)
+            return _jit().cast(self._fields, uv, heading, angles, limit, h, w, res, max_range)
+        t = np.empty((n, b))
+        # Chunk whole poses so that each chunk has about _CHUNK rays.
+        per = max(1, _CHUNK // max(b, 1))
+        for i in range(0, n, per):
+            phi = (heading[i : i + per, None] + angles[None, :]).ravel()
+            u0 = np.repeat(uv[i : i + per, 0], b)
+            v0 = np.repeat(uv[i : i + per, 1], b)
+            t[i : i + per] = self._trace(u0, v0, np.cos(phi), np.sin(phi), limit).reshape(-1, b)
         # t < 0: no obstacle before the limit. Metres are clipped to max_range so that
         # round-off in t * res never reports a hit beyond it.
         return np.where(t < 0, max_range, np.minimum(t * res, max_range))
@@ -411,7 +411,8 @@ def _jit():
                 # compile (or load from numba's cache) both kernels now, on a tiny map,
                 # so that a broken numba install falls back here and not mid-cast
                 tiny = _raycast_jit.quadrant_fields(np.zeros((3, 3), dtype=bool))
-                _raycast_jit.cast(tiny, np.ones((1, 2)), np.zeros(1), np.zeros(1), 1.0, 1, 1)
+                one = np.ones((1, 2)), np.zeros(1), np.zeros(1)
+                _raycast_jit.cast(tiny, *one, 1.0, 1, 1, 1.0, 1.0)
                 _JIT = _raycast_jit
             except Exception as exc:  # noqa: BLE001 - any failure of numba means: fall back
                 warnings.warn(

@@ -489,6 +489,26 @@ def test_backends_agree(seed, backend):
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-9)
 
 
+@pytest.mark.parametrize("n_poses, n_beams", [(1, 1), (1, 3), (1, 5), (2, 3), (3, 7), (11, 1)])
+def test_rays_in_flight_each_report_into_their_own_slot(n_poses, n_beams, backend):
+    # The compiled kernel traces a few rays at a time and refills a lane as soon as its
+    # ray ends; with fewer rays than lanes, rays that miss the map between rays that hit,
+    # and rays of very different lengths, every range must still land at its own (pose,
+    # beam): the same as casting that ray alone.
+    rng = np.random.default_rng(n_poses * 10 + n_beams)
+    data = (rng.random((40, 60)) < 0.05).astype(float)
+    g = OccupancyGrid(data, 0.25, origin=[-1.0, 2.0, 0.3])
+    # alternate poses on the map and poses beside it (most of their beams miss the map)
+    cells = rng.uniform([0, 0], [40, 60], (n_poses, 2))
+    cells[1::2] += [0.0, 100.0]
+    poses = np.column_stack([g.cell_to_world(cells - 0.5), rng.uniform(-np.pi, np.pi, n_poses)])
+    angles = rng.uniform(-np.pi, np.pi, n_beams)
+    together = cast_rays(g, poses, angles, 12.0)
+    alone = np.array([[single(g, p, a, 12.0) for a in angles] for p in poses])
+    np.testing.assert_allclose(together, alone, rtol=0, atol=1e-12)
+    assert (together < 12.0).any() or n_poses * n_beams < 3, "no ray hit: the case tests nothing"
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_chessboard_quadrant_fields_match_brute_force(seed):
     if raycast._jit() is None:
