@@ -11,7 +11,7 @@ Two kernels, both plain loops that numba compiles once (and caches on disk):
   chessboard distance from every cell to the nearest obstacle cell *ahead*,
   by the largest-empty-square recurrence (one raster pass per quadrant);
 * :func:`cast`: every ray's exact Amanatides-Woo traversal, accelerated by
-  safe jumps over those fields (no cap on the jump), four rays in flight at
+  safe jumps over those fields (no cap on the jump), six rays in flight at
   a time, each held in registers, with the next cell of each prefetched, so
   that their memory look-ups overlap.
 
@@ -99,10 +99,10 @@ def quadrant_fields(occ):  # pragma: no cover - compiled (run through the tests)
 
 #: Rays traced together, each in registers: their field look-ups are independent,
 #: so the processor overlaps their latencies (one ray alone is a chain of
-#: dependent loads). Four lanes, written out in :func:`cast`, were faster than the
-#: eight held in arrays of the previous kernel on every map of benchmarks/raycast.py;
-#: six or eight register lanes gain only on the 2000 x 2000 map and lose on the rest.
-LANES = 4
+#: dependent loads). Six lanes, written out in :func:`cast`: on benchmarks/raycast.py
+#: (2026-12-01) three or four lost up to 30 % on the 2000 x 2000 map, where most
+#: look-ups miss the caches, and eight lost 5-20 % on the small maps and the real one.
+LANES = 6
 
 
 @intrinsic
@@ -165,37 +165,56 @@ def cast(fields, uv, heading, angles, limit, h, w, res, zmax):  # pragma: no cov
     wp = fields.shape[2]
     geometry = (n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat)
     # One state tuple per lane (see _start); a lane whose ray index is `total` is idle.
+    # The lanes are spelled out, not an array of states nor a helper per lane: that way
+    # they stay in registers (either of the other two forms measured 3-4x slower).
     i, j = 0, 0
     s0, i, j = _start(i, j, geometry)
     s1, i, j = _start(i, j, geometry)
     s2, i, j = _start(i, j, geometry)
     s3, i, j = _start(i, j, geometry)
-    live = (s0[0] < total) + (s1[0] < total) + (s2[0] < total) + (s3[0] < total)
+    s4, i, j = _start(i, j, geometry)
+    s5, i, j = _start(i, j, geometry)
+    live = LANES - (
+        (s0[0] == total) + (s1[0] == total) + (s2[0] == total)
+        + (s3[0] == total) + (s4[0] == total) + (s5[0] == total)
+    )  # fmt: skip
     while live > 0:
         if s0[0] < total:
-            s0, done, hit = _step(flat, wp, s0)
+            s0, done, hit, t = _step(flat, wp, s0)
             if done:
-                out[s0[0]] = min(s0[1] * res, zmax) if hit else zmax
+                out[s0[0]] = min(t * res, zmax) if hit else zmax
                 s0, i, j = _start(i, j, geometry)
                 live -= s0[0] >= total
         if s1[0] < total:
-            s1, done, hit = _step(flat, wp, s1)
+            s1, done, hit, t = _step(flat, wp, s1)
             if done:
-                out[s1[0]] = min(s1[1] * res, zmax) if hit else zmax
+                out[s1[0]] = min(t * res, zmax) if hit else zmax
                 s1, i, j = _start(i, j, geometry)
                 live -= s1[0] >= total
         if s2[0] < total:
-            s2, done, hit = _step(flat, wp, s2)
+            s2, done, hit, t = _step(flat, wp, s2)
             if done:
-                out[s2[0]] = min(s2[1] * res, zmax) if hit else zmax
+                out[s2[0]] = min(t * res, zmax) if hit else zmax
                 s2, i, j = _start(i, j, geometry)
                 live -= s2[0] >= total
         if s3[0] < total:
-            s3, done, hit = _step(flat, wp, s3)
+            s3, done, hit, t = _step(flat, wp, s3)
             if done:
-                out[s3[0]] = min(s3[1] * res, zmax) if hit else zmax
+                out[s3[0]] = min(t * res, zmax) if hit else zmax
                 s3, i, j = _start(i, j, geometry)
                 live -= s3[0] >= total
+        if s4[0] < total:
+            s4, done, hit, t = _step(flat, wp, s4)
+            if done:
+                out[s4[0]] = min(t * res, zmax) if hit else zmax
+                s4, i, j = _start(i, j, geometry)
+                live -= s4[0] >= total
+        if s5[0] < total:
+            s5, done, hit, t = _step(flat, wp, s5)
+            if done:
+                out[s5[0]] = min(t * res, zmax) if hit else zmax
+                s5, i, j = _start(i, j, geometry)
+                live -= s5[0] >= total
     return out[:total].reshape(n, b)
 
 
@@ -207,7 +226,7 @@ def _start(i, j, geometry):  # pragma: no cover - compiled
     dy)``: the ray's index, its time and end (cells), its cell (padded column,
     row), the offset of its quadrant's field, and constants of the ray (exit
     offsets, inverse direction, origin, direction). It is kept this short on
-    purpose: four lanes of it live in registers, and every value more spills
+    purpose: the lanes of it live in registers, and every value more spills
     (the step signs and ``|1/d|`` are recomputed in :func:`_step` instead).
     Rays that miss the map keep ``zmax``; when no ray is left the state's
     index is ``n b`` (an idle lane).
@@ -257,44 +276,52 @@ def _start(i, j, geometry):  # pragma: no cover - compiled
 
 @njit(inline="always")
 def _step(flat, wp, state):  # pragma: no cover - compiled
-    """One iteration of a ray: ``(new state, done, hit)``.
+    """One iteration of a ray: ``(new state, done, hit, t)``, ``t`` the time it started from.
 
     The field code of the ray's cell bounds how far it may go: every obstacle
     ahead is at least ``s = DECODE[code]`` columns or rows away, so the ray
     reaches none before it has crossed ``s - 1`` more columns or rows than its
-    cell's exit, ``min(t_x + (s - 1) / |d_x|, t_y + (s - 1) / |d_y|)`` (``s = 1``:
-    one exact Amanatides-Woo step into the next cell; code 0: the ray is in an
-    obstacle, a hit at ``t``). Written as selects rather than branches: which
-    case applies is data-dependent, and a mispredicted branch costs more than
-    computing both sides.
+    cell's exit, ``min(t_x + (s - 1) / |d_x|, t_y + (s - 1) / |d_y|)``. The same
+    formula is one exact Amanatides-Woo step into the next cell for ``s = 1``
+    and does not advance for code 0 (the ray is in an obstacle: a hit at the
+    ``t`` returned, the time the ray entered it). The axis that was crossed
+    moves by ``s`` cells; the other one is recomputed from the position after a
+    jump and kept after a step.
+
+    Branch-free on purpose: which of those cases applies, and along which axis,
+    changes from one iteration to the next without a pattern, and the
+    mispredicted branches of an if/else version cost a third of the time. The
+    choices are integer masks, and ``|1/d|`` is capped at 1e300 so that
+    ``0 * |1/d|`` is 0, not NaN, for a ray along an axis (a smaller bound only
+    shortens a jump).
     """
     m, t, t_end, ci, ri, koff, ax, ay, idx, idy, u0, v0, dx, dy = state
     sx = 1 if idx > 0.0 else -1  # idx = +inf for dx = 0: the sign _start used for koff, ax
     sy = 1 if idy > 0.0 else -1
-    adx, ady = abs(idx), abs(idy)
+    adx = min(abs(idx), 1e300)
+    ady = min(abs(idy), 1e300)
     code = flat[koff + ri * wp + ci]
     s = DECODE_F[code]
     tx = (ci + ax) * idx  # when the ray leaves the cell's column / row
     ty = (ri + ay) * idy
-    jump = code > 1
-    # (not for s = 1: 0 * inf is NaN along an axis)
-    jx = tx + (s - 1.0) * adx if jump else tx
-    jy = ty + (s - 1.0) * ady if jump else ty
-    along_x = jx <= jy
-    t_new = max(jx, t) if along_x else max(jy, t)
-    step = int(s)
+    jx = tx + (s - 1.0) * adx
+    jy = ty + (s - 1.0) * ady
+    t_new = max(min(jx, jy), t)
+    x_mask = -np.int64(jx <= jy)  # all ones: the ray crossed columns
+    j_mask = -np.int64(code > 1)  # all ones: a jump (else a step, or a hit)
+    step = np.int64(s)
     # padded positions are > 0 on the map, so int() is floor()
-    c_at = int(u0 + t_new * dx)
-    r_at = int(v0 + t_new * dy)
-    ci_new = ci + sx * step if along_x else (c_at if jump else ci)
-    ri_new = (r_at if jump else ri) if along_x else ri + sy * step
+    c_at = np.int64(u0 + t_new * dx)
+    r_at = np.int64(v0 + t_new * dy)
+    c_side = (c_at & j_mask) | (ci & ~j_mask)
+    r_side = (r_at & j_mask) | (ri & ~j_mask)
+    ci_new = ((ci + sx * step) & x_mask) | (c_side & ~x_mask)
+    ri_new = (r_side & x_mask) | ((ri + sy * step) & ~x_mask)
     hit = code == 0
-    if hit:
-        t_new, ci_new, ri_new = t, ci, ri
     _prefetch(flat, koff + ri_new * wp + ci_new)
-    done = hit or t_new >= t_end
+    done = hit | (t_new >= t_end)
     state = (m, t_new, t_end, ci_new, ri_new, koff, ax, ay, idx, idy, u0, v0, dx, dy)
-    return state, done, hit
+    return state, done, hit, t
 
 
 @njit(inline="always")

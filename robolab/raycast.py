@@ -81,9 +81,9 @@ Two implementations of this traversal give the same ranges (up to float
 round-off, ~1e-13 cells):
 
 * ``"numba"`` (the default when numba can be imported): the compiled kernels of
-  :mod:`robolab._raycast_jit`, one ray at a time on one core, four rays in
+  :mod:`robolab._raycast_jit`, one ray at a time on one core, six rays in
   flight (their states in registers, each one's next cell prefetched) so that
-  their memory look-ups overlap. Its jump fields are
+  their memory look-ups overlap, each step free of branches. Its jump fields are
   chessboard distances ``D_q(c) = min max(|di|, |dj|)`` over the obstacles of
   ``Q_q(c)``, built by the largest-empty-square recurrence in one pass per
   quadrant and stored in one byte each (exact up to 127 cells, then rounded

@@ -6,6 +6,7 @@ fallback), through the ``backend`` fixture.
 
 from __future__ import annotations
 
+import importlib.util
 import weakref
 
 import numpy as np
@@ -20,6 +21,8 @@ from robolab.raycast import RayCaster, cast_rays, castrays, castraysingle
 def backend(request, monkeypatch):
     """Run the test with casters of one backend (a fresh cache: no caster of the other leaks in)."""
     if request.param == "numba" and raycast._jit() is None:
+        if importlib.util.find_spec("numba") is not None:
+            pytest.fail("numba is installed but the compiled ray caster did not load (see warning)")
         pytest.skip("numba is not installed")
     monkeypatch.setattr(raycast, "default_backend", lambda: request.param)
     monkeypatch.setattr(raycast, "_CACHE", weakref.WeakKeyDictionary())
