@@ -318,7 +318,13 @@ def loads(data: bytes, limits: DecodeLimits | None = None) -> Any:
         raise CodecError(
             f"the result is too large ({len(data)} bytes; at most {limits.max_bytes} are accepted)"
         )
-    _register_defaults()
+    if b"robolab" in data:
+        # Only a pickle that names a robolab class can need one: the default dataclasses'
+        # modules (robolab.maps imports scipy, robolab.bag rosbags: a quarter of a second)
+        # are imported when the first such result arrives, not for every plain one. A
+        # module name cannot be spelt without its bytes (pickle has no string operations);
+        # one that is escaped is simply not found, and the result refused.
+        _register_defaults()
     value = decode(data, limits, _ALLOWED, _DATACLASSES)
     check_plain(value, limits)
     return value
