@@ -86,7 +86,7 @@ def grade(
     from robolab.grading.batch import BatchState, prepare_out
     from robolab.grading.course import Course
     from robolab.grading.labs import project_root
-    from robolab.grading.runner import DEFAULT_TIMEOUT, BatchInterrupted, grade_all
+    from robolab.grading.runner import DEFAULT_TIMEOUT, BatchInterrupted, grade_all, start_zygotes
 
     timeout = DEFAULT_TIMEOUT if timeout is None else timeout
     if importlib.util.find_spec("pytest") is None:
@@ -101,6 +101,7 @@ def grade(
     if missing:
         return _error(f"no such notebook: {_shown(missing[0])}")
     root = project_root()
+    start_zygotes(root)  # their imports run while the batch is read and planned
     try:
         if lab is not None:
             find_lab(lab)

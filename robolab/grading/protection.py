@@ -212,6 +212,7 @@ def _answer_files() -> list[str]:
 
 def probe_protection() -> Protection:
     """Start one worker and try what a hostile submission would; never raises."""
+    from robolab.grading import warm
     from robolab.grading.proxy import Limits, open_submission
 
     files = _answer_files()
@@ -224,7 +225,8 @@ def probe_protection() -> Protection:
         with tempfile.TemporaryDirectory(prefix="robolab-probe-") as folder:
             notebook = Path(folder) / "probe.ipynb"
             _write_probe(notebook)
-            with open_submission(notebook, limits=Limits(cpu_seconds=10, wall_seconds=30)) as sub:
+            limits = Limits(cpu_seconds=10, wall_seconds=30)
+            with warm.probing(), open_submission(notebook, limits=limits) as sub:
                 readable, reached = sub.probe(files, tcp.getsockname()[1], udp.getsockname()[1])
                 report = sub.sandbox
         return Protection(report, [str(p) for p in readable], [str(r) for r in reached])

@@ -11,6 +11,7 @@ the proxy and the runner use). See ``docs/grading.md``, section 8.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import select
@@ -19,6 +20,7 @@ import socket
 import sys
 import threading
 import time
+from collections.abc import Iterator
 
 __all__ = [
     "FD_VARIABLE",
@@ -26,6 +28,7 @@ __all__ = [
     "WarmChild",
     "Zygote",
     "ZygoteError",
+    "probing",
     "reset_shared",
     "shared",
     "shared_grader",
@@ -192,6 +195,8 @@ class Zygote:
         ZygoteError
             When the zygote is gone or refuses.
         """
+        if getattr(_probing, "active", False):
+            request = dict(request, probe=True)
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
             with self._lock:
@@ -255,6 +260,24 @@ def _zygote_env() -> dict[str, str]:
         if name in os.environ:
             env[name] = os.environ[name]
     return env
+
+
+_probing = threading.local()
+
+
+@contextlib.contextmanager
+def probing() -> Iterator[None]:
+    """Mark the workers this thread forks meanwhile as probes (:mod:`robolab.grading.protection`).
+
+    A probe is forked and isolated like any worker; it only does not count as a
+    submission of the batch for the zygote's idle imports (:data:`~robolab.grading.zygote.IDLE_AFTER`).
+    """
+    previous = getattr(_probing, "active", False)
+    _probing.active = True
+    try:
+        yield
+    finally:
+        _probing.active = previous
 
 
 _shared: Zygote | None = None
