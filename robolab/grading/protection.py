@@ -141,6 +141,26 @@ class Protection:
         """The gradebook's isolation column: "" when everything holds, else the problems."""
         return "UNPROTECTED: " + "; ".join(self.problems) if self.problems else ""
 
+    def to_dict(self) -> dict:
+        """A JSON-ready copy (for a probe run in a child of the grader zygote)."""
+        return {
+            "report": None if self.report is None else self.report.to_dict(),
+            "readable": list(self.readable),
+            "reached": list(self.reached),
+            "failure": self.failure,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Protection:
+        """Inverse of :meth:`to_dict`."""
+        report = data.get("report")
+        return cls(
+            None if report is None else SandboxReport.from_dict(report),
+            [str(p) for p in data.get("readable", [])],
+            [str(r) for r in data.get("reached", [])],
+            str(data.get("failure", "")),
+        )
+
     def line(self) -> str:
         """One line for the batch log: what protects what."""
         r = self.report
@@ -252,10 +272,66 @@ def _write_probe(path: Path) -> None:
     )
 
 
+def _probe_forked() -> Protection | None:
+    """:func:`probe_protection` in a child of this process's grader zygote, or None.
+
+    The same probe, but forked from a process that has already imported numpy and the
+    grader's modules, so that a batch does not import them a second time just to probe.
+    None when no grader zygote runs or the child gave no answer (then the caller probes
+    in this process, and says why the sandbox failed if it does).
+    """
+    import json
+    import os
+    import shutil
+
+    from robolab.grading import warm
+
+    running = warm.running_grader()
+    workers = warm.shared() if running is not None else None
+    if workers is None:
+        return None
+    root, grader = running
+    folder = tempfile.mkdtemp(prefix="robolab-probe-")  # 0700: the grader's own
+    out = os.path.join(folder, "protection.json")
+    log_r, log_w = os.pipe()
+    try:
+        request = {
+            "task": "probe",
+            "probe": True,  # not a submission: no idle imports for it
+            "out": out,
+            "args": [],
+            "env": dict(os.environ, **{warm.FD_VARIABLE: str(workers.fileno())}),
+            "cwd": root,
+            "keep": [workers.fileno()],
+        }
+        try:
+            child = grader.spawn(request, (log_w,))
+        except warm.ZygoteError:
+            return None
+        finally:
+            os.close(log_w)
+        while os.read(log_r, 1 << 16):  # its warnings: the line printed says the same
+            pass
+        if child.wait(timeout=120) != 0:
+            return None
+        with open(out, encoding="utf-8") as f:
+            return Protection.from_dict(json.load(f))
+    except (OSError, ValueError, TypeError, KeyError):
+        return None
+    finally:
+        os.close(log_r)
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 @functools.lru_cache(maxsize=1)
 def describe_protection() -> Protection:
-    """:func:`probe_protection`, once per process (a batch asks before it grades)."""
-    return probe_protection()
+    """:func:`probe_protection`, once per process (a batch asks before it grades).
+
+    Forked from the batch's grader zygote when one runs (:func:`_probe_forked`), else
+    run in this process.
+    """
+    found = _probe_forked()
+    return found if found is not None else probe_protection()
 
 
 def answers_protected() -> bool:

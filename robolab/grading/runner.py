@@ -20,12 +20,13 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any
-
-from tqdm import tqdm
+from typing import TYPE_CHECKING, Any
 
 from robolab.grading import warm
 from robolab.grading.labs import LabError, find_lab, lab_of_notebook, project_root
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 __all__ = [
     "DEFAULT_TIMEOUT",
@@ -393,6 +394,8 @@ def grade_all(
     paths = [Path(p) for p in paths]
     if paths:
         start_zygotes(root)
+    from tqdm import tqdm  # here: importing it costs robolab grade 25 ms before its zygotes start
+
     from robolab.grading import protection as _protection  # probed once per batch
 
     # The probe (a real worker trying what a hostile one would) runs beside the grading, in

@@ -30,6 +30,7 @@ __all__ = [
     "ZygoteError",
     "probing",
     "reset_shared",
+    "running_grader",
     "shared",
     "shared_grader",
 ]
@@ -369,6 +370,15 @@ def shared_grader(root: str, env: dict[str, str]) -> Zygote | None:
             atexit.register(grader.close)  # before the worker zygote's close (last in, first out)
             _graders[root] = grader
         return grader
+
+
+def running_grader() -> tuple[str, Zygote] | None:
+    """The newest grader zygote this process started that still runs, with its project root."""
+    with _shared_lock:
+        for root, grader in reversed(_graders.items()):
+            if grader.process is not None and grader.process.poll() is None:
+                return root, grader
+    return None
 
 
 def reset_shared(zygote: Zygote | None = None) -> None:

@@ -284,13 +284,25 @@ class _Server:
         return worker.main(["robolab.grading.worker", json.dumps(config)])
 
     def _become_grader(self, request: dict, log_fd: int) -> int:  # pragma: no cover
-        """In the forked child: ``python -m pytest ARGS`` in ``cwd``, output to the log."""
+        """In the forked child: ``python -m pytest ARGS`` in ``cwd``, output to the log.
+
+        A request ``{"task": "probe", "out": PATH, ...}`` instead probes what this
+        machine's workers are protected from (:func:`robolab.grading.protection.probe_protection`,
+        with a worker of the worker zygote) and writes the result to ``PATH`` as JSON.
+        """
         keep = {int(fd) for fd in request.get("keep", ())}
         _redirect(log_fd, keep=keep)
         os.chdir(request["cwd"])
         os.environ.clear()
         os.environ.update(request["env"])
         sys.path[0] = request["cwd"]  # what `python -m pytest` run there would have
+        if request.get("task") == "probe":
+            from robolab.grading import protection
+
+            found = protection.probe_protection()
+            with open(request["out"], "w", encoding="utf-8") as f:
+                json.dump(found.to_dict(), f)
+            return 0
         sys.argv = ["pytest", *request["args"]]
         import pytest
 
