@@ -140,6 +140,7 @@ class Zygote:
         self.process = None
         self.role = role
         self._lock = threading.Lock()
+        self._ready: int | None = None
         if control_fd is not None:
             self.control = socket.socket(fileno=control_fd)
             if self.control.type != socket.SOCK_SEQPACKET:
@@ -150,7 +151,11 @@ class Zygote:
         self.control, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         import subprocess
 
-        config = json.dumps({"control_fd": theirs.fileno(), "role": role})
+        # The zygote writes one byte here once it has imported everything: until then it
+        # has forked nothing, and close() may simply kill it instead of waiting.
+        self._ready, ready_w = os.pipe()
+        os.set_blocking(self._ready, False)
+        config = json.dumps({"control_fd": theirs.fileno(), "role": role, "ready_fd": ready_w})
         if role == "worker":  # exactly like a cold worker: isolated mode, minimal environment
             argv = [sys.executable, "-I", "-B", "-m", "robolab.grading.zygote", config]
             env, cwd = _zygote_env(), "/"
@@ -163,13 +168,14 @@ class Zygote:
             self.process = subprocess.Popen(
                 argv,
                 stdin=subprocess.DEVNULL,
-                pass_fds=(theirs.fileno(), *pass_fds),
+                pass_fds=(theirs.fileno(), ready_w, *pass_fds),
                 env=env,
                 cwd=cwd,
                 start_new_session=True,  # a Ctrl-C in the grader's terminal reaches the grader only
             )
         finally:
             theirs.close()
+            os.close(ready_w)
         # No waiting here: it imports while the grader starts up, and the first
         # request simply queues until it is ready.
 
@@ -231,6 +237,19 @@ class Zygote:
             self.control.close()
         except OSError:
             pass
+        if self._ready is not None:
+            try:
+                preloaded = os.read(self._ready, 1) != b""
+            except BlockingIOError:
+                preloaded = False  # still importing: it has forked nothing yet
+            except OSError:
+                preloaded = True
+            os.close(self._ready)
+            self._ready = None
+            if not preloaded and self.process is not None and self.process.poll() is None:
+                # A command that ends (an error, --help) before its zygote is ready does not
+                # wait half a second for imports nobody will use.
+                self.process.kill()
         if self.process is not None:
             try:
                 self.process.wait(timeout=15)
