@@ -286,11 +286,18 @@ def _probe_forked() -> Protection | None:
 
     from robolab.grading import warm
 
-    running = warm.running_grader()
-    workers = warm.shared() if running is not None else None
+    ours = Path(robolab.__file__).resolve().parent
+    # Only a grader zygote that runs this very robolab (a project root without a copy of
+    # its own, or whose copy is this one): the probe tests this process's code.
+    running = [
+        (root, grader)
+        for root, grader in warm.running_graders()
+        if not (Path(root) / "robolab").exists() or (Path(root) / "robolab").resolve() == ours
+    ]
+    workers = warm.shared() if running else None
     if workers is None:
         return None
-    root, grader = running
+    root, grader = running[0]
     folder = tempfile.mkdtemp(prefix="robolab-probe-")  # 0700: the grader's own
     out = os.path.join(folder, "protection.json")
     log_r, log_w = os.pipe()

@@ -30,7 +30,7 @@ __all__ = [
     "ZygoteError",
     "probing",
     "reset_shared",
-    "running_grader",
+    "running_graders",
     "shared",
     "shared_grader",
 ]
@@ -290,7 +290,8 @@ def probing() -> Iterator[None]:
     """Mark the workers this thread forks meanwhile as probes (:mod:`robolab.grading.protection`).
 
     A probe is forked and isolated like any worker; it only does not count as a
-    submission of the batch for the zygote's idle imports (:data:`~robolab.grading.zygote.IDLE_AFTER`).
+    submission of the batch for the zygote's idle imports
+    (:data:`~robolab.grading.zygote.IDLE_AFTER`).
     """
     previous = getattr(_probing, "active", False)
     _probing.active = True
@@ -391,13 +392,15 @@ def shared_grader(root: str, env: dict[str, str]) -> Zygote | None:
         return grader
 
 
-def running_grader() -> tuple[str, Zygote] | None:
-    """The newest grader zygote this process started that still runs, with its project root."""
+def running_graders() -> list[tuple[str, Zygote]]:
+    """The grader zygotes this process started that still run, with their project roots
+    (newest first)."""
     with _shared_lock:
-        for root, grader in reversed(_graders.items()):
-            if grader.process is not None and grader.process.poll() is None:
-                return root, grader
-    return None
+        return [
+            (root, grader)
+            for root, grader in reversed(_graders.items())
+            if grader.process is not None and grader.process.poll() is None
+        ]
 
 
 def reset_shared(zygote: Zygote | None = None) -> None:
