@@ -33,6 +33,7 @@ __all__ = [
     "Protection",
     "UnprotectedAnswers",
     "answers_protected",
+    "batch_protection",
     "describe_protection",
     "probe_protection",
     "require_answers_protected",
@@ -332,13 +333,24 @@ def _probe_forked() -> Protection | None:
 
 @functools.lru_cache(maxsize=1)
 def describe_protection() -> Protection:
-    """:func:`probe_protection`, once per process (a batch asks before it grades).
+    """:func:`probe_protection` in this process, once per process (what the gates ask)."""
+    return probe_protection()
 
-    Forked from the batch's grader zygote when one runs (:func:`_probe_forked`), else
-    run in this process.
+
+@functools.lru_cache(maxsize=1)
+def batch_protection() -> Protection:
+    """What a batch announces (:func:`robolab.grading.runner.grade_all`), once per process.
+
+    Probed in a child of the batch's grader zygote when one runs this robolab
+    (:func:`_probe_forked`): the process its pytest runs are forked from, with numpy and
+    the proxy already imported. Else :func:`describe_protection`. The refusals
+    (:func:`require_answers_protected`, the Gradescope bundle) always probe in the
+    process that grades.
     """
+    if describe_protection.cache_info().currsize:  # probed here already (a gate asked)
+        return describe_protection()
     found = _probe_forked()
-    return found if found is not None else probe_protection()
+    return found if found is not None else describe_protection()
 
 
 def answers_protected() -> bool:

@@ -83,7 +83,7 @@ class SubmissionResult:
     fatal: bool = False
     seconds: float = 0.0
     #: What the machine's sandbox failed to protect ("" when everything held), from
-    #: :func:`robolab.grading.protection.describe_protection`.
+    #: :func:`robolab.grading.protection.batch_protection`.
     isolation: str = ""
     #: Things the instructor must look at (a lab that differs from the batch's, ...);
     #: shown in the summary and the gradebook, not a grading error.
@@ -403,7 +403,7 @@ def grade_all(
     # nothing (each worker isolates itself as before). Results wait for it before anyone
     # sees them, and its line is printed before the first of them.
     probe_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="robolab-probe")
-    probe = probe_pool.submit(_protection.describe_protection)
+    probe = probe_pool.submit(_protection.batch_protection)
     protection = None
     labs = list(labs) if labs is not None else [lab] * len(paths)
     names = list(names) if names is not None else [p.stem for p in paths]

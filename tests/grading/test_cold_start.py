@@ -56,9 +56,11 @@ def fresh():
     """No zygote of this process before the test, none after it."""
     warm.reset_shared(None)
     protection.describe_protection.cache_clear()
+    protection.batch_protection.cache_clear()
     yield
     warm.reset_shared(None)
     protection.describe_protection.cache_clear()
+    protection.batch_protection.cache_clear()
 
 
 @warm_only
@@ -131,8 +133,8 @@ def test_a_grader_zygote_of_another_robolab_does_not_probe(fresh, tmp_path):
 def test_without_a_grader_zygote_the_probe_runs_here(fresh, monkeypatch):
     monkeypatch.setenv(warm.SWITCH_VARIABLE, "0")
     assert protection._probe_forked() is None
-    found = protection.describe_protection()
-    assert found.report is not None
+    found = protection.batch_protection()
+    assert found.report is not None and found is protection.describe_protection()
 
 
 @warm_only
