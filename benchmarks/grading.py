@@ -10,8 +10,8 @@ interleaved, best of the repeats:
 - warm: workers forked by one zygote (:mod:`robolab.grading.zygote`) per grading
   session.
 
-"one submission (CLI)" is ``robolab grade one.ipynb`` in a fresh process: what an
-instructor waits for, zygote start-up included. "one submission (warm)" is
+"one submission (CLI)" is ``robolab grade one.ipynb --out NEW_FOLDER`` in a fresh process:
+what an instructor waits for, zygote start-up included. "one submission (warm)" is
 ``grade_submission`` in a process whose zygote already runs (a submission in a
 batch). The machine's load average is printed before and after: on a shared
 machine, read the ratios, not the seconds.
@@ -64,7 +64,10 @@ def _children_cpu() -> float:
     return usage.ru_utime + usage.ru_stime
 
 
-def _cli(lab: str, out: Path) -> tuple[float, float | None]:
+def _cli(lab: str, tmp: Path) -> tuple[float, float | None]:
+    # A fresh output folder every time: in a folder that already holds the grade, robolab
+    # grade keeps it and grades nothing (the batch state), which is not what is measured.
+    out = Path(tempfile.mkdtemp(prefix="cli-", dir=tmp))
     start, cpu = time.perf_counter(), _children_cpu()
     subprocess.run(
         [sys.executable, "-m", "robolab.cli", "grade", str(_correct(lab)), "--out", str(out)],
@@ -122,7 +125,7 @@ def main(argv: list[str] | None = None) -> int:
     errors = 0
     with tempfile.TemporaryDirectory(prefix="robolab-bench-") as tmp:
         cases: list[tuple[str, Callable[[], tuple[float, float | None]]]] = [
-            ("one submission (CLI)", lambda: _cli(args.lab, Path(tmp) / "cli")),
+            ("one submission (CLI)", lambda: _cli(args.lab, Path(tmp))),
             ("one submission (warm)", lambda: _warm_one(args.lab)),
         ]
 

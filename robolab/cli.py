@@ -206,6 +206,16 @@ def _dispatch(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    if (sys.argv[1:] if argv is None else list(argv))[:1] == ["grade"]:
+        # Before anything else: the zygotes' imports (half a second) run while the
+        # arguments are parsed and the batch is read. A command that ends before they
+        # are ready (a usage error, --help) kills them at exit instead of waiting.
+        from robolab.grading import warm
+
+        warm.shared()  # the worker zygote first: its imports are the longest
+        from robolab.grading.runner import start_zygotes
+
+        start_zygotes()
     args = _build_parser().parse_args(argv)
     try:
         return _dispatch(args)

@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import yaml
 from PIL import Image, UnidentifiedImageError
-from scipy.special import expit
 
 from robolab.validation import as_array, check_positive
 
@@ -225,6 +224,8 @@ def from_logodds(logodds, grid: OccupancyGrid, *, prior: float = 0.0, observed=N
                 f"observed must be a bool array of shape {grid.shape}, "
                 f"got {seen.dtype} {seen.shape}"
             )
+    from scipy.special import expit  # here: scipy.special costs 0.1 s to import
+
     return grid.with_data(np.where(seen, expit(lo), UNKNOWN))
 
 

@@ -241,18 +241,22 @@ def registered_dataclasses() -> list[type]:
     return list(_DATACLASSES.values())
 
 
-_defaults_registered = False
+#: Modules whose dataclasses are accepted by default (registered on first use).
+_DEFAULT_MODULES = ("robolab.maps", "robolab.bag")
+_defaults_registered: set[str] = set()
 
 
-def _register_defaults() -> None:
+def _register_defaults(data: bytes | None = None) -> None:
+    """Register the default modules' dataclasses: all of them, or those ``data`` names."""
     # Imported lazily: the bag module pulls in `rosbags`, and it may not exist yet.
-    global _defaults_registered
-    if _defaults_registered:
-        return
-    _defaults_registered = True
     import importlib
 
-    for module_name in ("robolab.maps", "robolab.bag"):
+    for module_name in _DEFAULT_MODULES:
+        if module_name in _defaults_registered or (
+            data is not None and module_name.encode() not in data
+        ):
+            continue
+        _defaults_registered.add(module_name)
         try:
             module = importlib.import_module(module_name)
         except Exception:  # noqa: BLE001 - an optional module failing to import only narrows the list
@@ -318,7 +322,12 @@ def loads(data: bytes, limits: DecodeLimits | None = None) -> Any:
         raise CodecError(
             f"the result is too large ({len(data)} bytes; at most {limits.max_bytes} are accepted)"
         )
-    _register_defaults()
+    # Only a pickle that names a class of robolab.maps or robolab.bag can need one of their
+    # dataclasses: each module is imported (robolab.maps imports scipy, robolab.bag rosbags:
+    # a quarter of a second) when the first result naming it arrives, not for every plain
+    # one. A module name cannot be spelt without its bytes (pickle has no string
+    # operations); one that is escaped is simply not found, and the result refused.
+    _register_defaults(data)
     value = decode(data, limits, _ALLOWED, _DATACLASSES)
     check_plain(value, limits)
     return value

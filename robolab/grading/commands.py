@@ -83,10 +83,8 @@ def grade(
     (a user error, unknown lab, pytest missing, hidden tests that do not run);
     130 when interrupted (what finished is saved; the same command resumes).
     """
-    from robolab.grading.batch import BatchState, prepare_out
-    from robolab.grading.course import Course
     from robolab.grading.labs import project_root
-    from robolab.grading.runner import DEFAULT_TIMEOUT, BatchInterrupted, grade_all
+    from robolab.grading.runner import DEFAULT_TIMEOUT, BatchInterrupted, grade_all, start_zygotes
 
     timeout = DEFAULT_TIMEOUT if timeout is None else timeout
     if importlib.util.find_spec("pytest") is None:
@@ -101,6 +99,10 @@ def grade(
     if missing:
         return _error(f"no such notebook: {_shown(missing[0])}")
     root = project_root()
+    start_zygotes(root)  # first: their imports run while the batch is read and planned
+    from robolab.grading.batch import BatchState, prepare_out
+    from robolab.grading.course import Course
+
     try:
         if lab is not None:
             find_lab(lab)

@@ -33,6 +33,7 @@ __all__ = [
     "Protection",
     "UnprotectedAnswers",
     "answers_protected",
+    "batch_protection",
     "describe_protection",
     "probe_protection",
     "require_answers_protected",
@@ -141,6 +142,26 @@ class Protection:
         """The gradebook's isolation column: "" when everything holds, else the problems."""
         return "UNPROTECTED: " + "; ".join(self.problems) if self.problems else ""
 
+    def to_dict(self) -> dict:
+        """A JSON-ready copy (for a probe run in a child of the grader zygote)."""
+        return {
+            "report": None if self.report is None else self.report.to_dict(),
+            "readable": list(self.readable),
+            "reached": list(self.reached),
+            "failure": self.failure,
+        }
+
+    @classmethod
+    def from_dict(cls, data: dict) -> Protection:
+        """Inverse of :meth:`to_dict`."""
+        report = data.get("report")
+        return cls(
+            None if report is None else SandboxReport.from_dict(report),
+            [str(p) for p in data.get("readable", [])],
+            [str(r) for r in data.get("reached", [])],
+            str(data.get("failure", "")),
+        )
+
     def line(self) -> str:
         """One line for the batch log: what protects what."""
         r = self.report
@@ -212,6 +233,7 @@ def _answer_files() -> list[str]:
 
 def probe_protection() -> Protection:
     """Start one worker and try what a hostile submission would; never raises."""
+    from robolab.grading import warm
     from robolab.grading.proxy import Limits, open_submission
 
     files = _answer_files()
@@ -224,7 +246,8 @@ def probe_protection() -> Protection:
         with tempfile.TemporaryDirectory(prefix="robolab-probe-") as folder:
             notebook = Path(folder) / "probe.ipynb"
             _write_probe(notebook)
-            with open_submission(notebook, limits=Limits(cpu_seconds=10, wall_seconds=30)) as sub:
+            limits = Limits(cpu_seconds=10, wall_seconds=30)
+            with warm.probing(), open_submission(notebook, limits=limits) as sub:
                 readable, reached = sub.probe(files, tcp.getsockname()[1], udp.getsockname()[1])
                 report = sub.sandbox
         return Protection(report, [str(p) for p in readable], [str(r) for r in reached])
@@ -250,10 +273,84 @@ def _write_probe(path: Path) -> None:
     )
 
 
+def _probe_forked() -> Protection | None:
+    """:func:`probe_protection` in a child of this process's grader zygote, or None.
+
+    The same probe, but forked from a process that has already imported numpy and the
+    grader's modules, so that a batch does not import them a second time just to probe.
+    None when no grader zygote runs or the child gave no answer (then the caller probes
+    in this process, and says why the sandbox failed if it does).
+    """
+    import json
+    import os
+    import shutil
+
+    from robolab.grading import warm
+
+    ours = Path(robolab.__file__).resolve().parent
+    # Only a grader zygote that runs this very robolab (a project root without a copy of
+    # its own, or whose copy is this one): the probe tests this process's code.
+    running = [
+        (root, grader)
+        for root, grader in warm.running_graders()
+        if not (Path(root) / "robolab").exists() or (Path(root) / "robolab").resolve() == ours
+    ]
+    workers = warm.shared() if running else None
+    if workers is None:
+        return None
+    root, grader = running[0]
+    folder = tempfile.mkdtemp(prefix="robolab-probe-")  # 0700: the grader's own
+    out = os.path.join(folder, "protection.json")
+    log_r, log_w = os.pipe()
+    try:
+        request = {
+            "task": "probe",
+            "probe": True,  # not a submission: no idle imports for it
+            "out": out,
+            "args": [],
+            "env": dict(os.environ, **{warm.FD_VARIABLE: str(workers.fileno())}),
+            "cwd": root,
+            "keep": [workers.fileno()],
+        }
+        try:
+            child = grader.spawn(request, (log_w,))
+        except warm.ZygoteError:
+            return None
+        finally:
+            os.close(log_w)
+        while os.read(log_r, 1 << 16):  # its warnings: the line printed says the same
+            pass
+        if child.wait(timeout=120) != 0:
+            return None
+        with open(out, encoding="utf-8") as f:
+            return Protection.from_dict(json.load(f))
+    except (OSError, ValueError, TypeError, KeyError):
+        return None
+    finally:
+        os.close(log_r)
+        shutil.rmtree(folder, ignore_errors=True)
+
+
 @functools.lru_cache(maxsize=1)
 def describe_protection() -> Protection:
-    """:func:`probe_protection`, once per process (a batch asks before it grades)."""
+    """:func:`probe_protection` in this process, once per process (what the gates ask)."""
     return probe_protection()
+
+
+@functools.lru_cache(maxsize=1)
+def batch_protection() -> Protection:
+    """What a batch announces (:func:`robolab.grading.runner.grade_all`), once per process.
+
+    Probed in a child of the batch's grader zygote when one runs this robolab
+    (:func:`_probe_forked`): the process its pytest runs are forked from, with numpy and
+    the proxy already imported. Else :func:`describe_protection`. The refusals
+    (:func:`require_answers_protected`, the Gradescope bundle) always probe in the
+    process that grades.
+    """
+    if describe_protection.cache_info().currsize:  # probed here already (a gate asked)
+        return describe_protection()
+    found = _probe_forked()
+    return found if found is not None else describe_protection()
 
 
 def answers_protected() -> bool:

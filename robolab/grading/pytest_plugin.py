@@ -427,7 +427,9 @@ class GradingCollector:
         }
         self.path.parent.mkdir(parents=True, exist_ok=True)
         tmp = self.path.with_name(self.path.name + ".part")
-        tmp.write_text(json.dumps(data, indent=1))
+        # No indent: json's C encoder (indented output is the pure-Python one, written
+        # after every test of every submission).
+        tmp.write_text(json.dumps(data))
         tmp.replace(self.path)
 
 

@@ -20,12 +20,13 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any
-
-from tqdm import tqdm
+from typing import TYPE_CHECKING, Any
 
 from robolab.grading import warm
 from robolab.grading.labs import LabError, find_lab, lab_of_notebook, project_root
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 __all__ = [
     "DEFAULT_TIMEOUT",
@@ -34,6 +35,7 @@ __all__ = [
     "TestOutcome",
     "grade_all",
     "grade_submission",
+    "start_zygotes",
     "stop_running",
 ]
 
@@ -81,7 +83,7 @@ class SubmissionResult:
     fatal: bool = False
     seconds: float = 0.0
     #: What the machine's sandbox failed to protect ("" when everything held), from
-    #: :func:`robolab.grading.protection.describe_protection`.
+    #: :func:`robolab.grading.protection.batch_protection`.
     isolation: str = ""
     #: Things the instructor must look at (a lab that differs from the batch's, ...);
     #: shown in the summary and the gradebook, not a grading error.
@@ -188,20 +190,41 @@ def _pytest_command(
     ]
 
 
-def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | None, float]:
-    """Run ``cmd`` in its own session; on timeout SIGINT then SIGKILL its process group.
-
-    Returns the exit code (None after a timeout) and the seconds it took.
-    """
+def _pytest_env(workers: warm.Zygote | None) -> dict[str, str]:
+    """The environment of a pytest run (and of the grader zygote that forks them)."""
     env = dict(
         os.environ,
         PYTEST_DISABLE_PLUGIN_AUTOLOAD="1",
         MPLBACKEND="Agg",
         PYTHONDONTWRITEBYTECODE="1",
     )
-    workers = warm.shared()  # one warm worker zygote serves every pytest run of this process
     if workers is not None:
         env[warm.FD_VARIABLE] = str(workers.fileno())
+    return env
+
+
+def start_zygotes(root: Path | None = None) -> None:
+    """Start the worker zygote and the grader zygote of ``root`` now, side by side.
+
+    Each imports its libraries (numpy and matplotlib; pytest) for about half a second:
+    started together, before anything else of the batch, they do that on both cores while
+    the grader reads the submissions, instead of one after the other when the first
+    submission needs them. Nothing waits for them here; a request simply queues until its
+    zygote is ready. A no-op when warm grading is off (``ROBOLAB_WARM_WORKERS=0``) or the
+    zygotes already run.
+    """
+    workers = warm.shared()
+    if workers is not None:
+        warm.shared_grader(str((root or project_root()).resolve()), _pytest_env(workers))
+
+
+def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | None, float]:
+    """Run ``cmd`` in its own session; on timeout SIGINT then SIGKILL its process group.
+
+    Returns the exit code (None after a timeout) and the seconds it took.
+    """
+    workers = warm.shared()  # one warm worker zygote serves every pytest run of this process
+    env = _pytest_env(workers)
     start = time.monotonic()
     with log.open("wb") as out, _LIVE_LOCK:
         if _STOPPING.is_set():
@@ -369,15 +392,34 @@ def grade_all(
     root = root or project_root()
     _STOPPING.clear()
     paths = [Path(p) for p in paths]
-    from robolab.grading.protection import describe_protection  # once per batch
+    if paths:
+        start_zygotes(root)
+    from tqdm import tqdm  # here: importing it costs robolab grade 25 ms before its zygotes start
 
-    protection = describe_protection()
-    protection.announce()
+    from robolab.grading import protection as _protection  # probed once per batch
+
+    # The probe (a real worker trying what a hostile one would) runs beside the grading, in
+    # a thread of its own: it says what the gradebook's isolation column holds, and gates
+    # nothing (each worker isolates itself as before). Results wait for it before anyone
+    # sees them, and its line is printed before the first of them.
+    probe_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="robolab-probe")
+    probe = probe_pool.submit(_protection.batch_protection)
+    protection = None
     labs = list(labs) if labs is not None else [lab] * len(paths)
     names = list(names) if names is not None else [p.stem for p in paths]
     results: list[SubmissionResult | None] = [None] * len(paths)
     pool = ThreadPoolExecutor(max_workers=jobs)
     done = 0
+    waiting: list[int] = []  # finished before the probe: published once it is known
+
+    def publish(index: int, bar: tqdm) -> None:
+        nonlocal done
+        results[index].isolation = protection.column
+        done += 1
+        if on_result is not None:
+            on_result(index, results[index])
+        bar.update(1)
+
     try:
         with tqdm(
             total=len(paths), unit="submission", disable=not progress, file=sys.stderr
@@ -386,19 +428,29 @@ def grade_all(
                 pool.submit(grade_submission, p, lab=la, name=n, root=root, timeout=timeout): i
                 for i, (p, la, n) in enumerate(zip(paths, labs, names, strict=True))
             }
-            for future in as_completed(futures):
+            for future in as_completed([probe, *futures]):
+                if future is probe:
+                    protection = probe.result()
+                    bar.clear()
+                    protection.announce()
+                    bar.refresh()
+                    for index in waiting:
+                        publish(index, bar)
+                    waiting.clear()
+                    continue
                 index = futures[future]
                 results[index] = future.result()
-                results[index].isolation = protection.column
-                done += 1
-                if on_result is not None:
-                    on_result(index, results[index])
-                bar.update(1)
+                if protection is None:
+                    waiting.append(index)
+                else:
+                    publish(index, bar)
     except KeyboardInterrupt:
         for future in futures if "futures" in locals() else ():
             future.cancel()
         stop_running()
         pool.shutdown(wait=True, cancel_futures=True)
+        probe_pool.shutdown(wait=False)  # its worker is killed with the zygote at exit
         raise BatchInterrupted(done, len(paths)) from None
     pool.shutdown(wait=True)
+    probe_pool.shutdown(wait=True)
     return [r for r in results if r is not None]

@@ -11,6 +11,7 @@ the proxy and the runner use). See ``docs/grading.md``, section 8.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import select
@@ -19,6 +20,7 @@ import socket
 import sys
 import threading
 import time
+from collections.abc import Iterator
 
 __all__ = [
     "FD_VARIABLE",
@@ -26,7 +28,9 @@ __all__ = [
     "WarmChild",
     "Zygote",
     "ZygoteError",
+    "probing",
     "reset_shared",
+    "running_graders",
     "shared",
     "shared_grader",
 ]
@@ -136,6 +140,7 @@ class Zygote:
         self.process = None
         self.role = role
         self._lock = threading.Lock()
+        self._ready: int | None = None
         if control_fd is not None:
             self.control = socket.socket(fileno=control_fd)
             if self.control.type != socket.SOCK_SEQPACKET:
@@ -146,7 +151,11 @@ class Zygote:
         self.control, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         import subprocess
 
-        config = json.dumps({"control_fd": theirs.fileno(), "role": role})
+        # The zygote writes one byte here once it has imported everything: until then it
+        # has forked nothing, and close() may simply kill it instead of waiting.
+        self._ready, ready_w = os.pipe()
+        os.set_blocking(self._ready, False)
+        config = json.dumps({"control_fd": theirs.fileno(), "role": role, "ready_fd": ready_w})
         if role == "worker":  # exactly like a cold worker: isolated mode, minimal environment
             argv = [sys.executable, "-I", "-B", "-m", "robolab.grading.zygote", config]
             env, cwd = _zygote_env(), "/"
@@ -159,13 +168,14 @@ class Zygote:
             self.process = subprocess.Popen(
                 argv,
                 stdin=subprocess.DEVNULL,
-                pass_fds=(theirs.fileno(), *pass_fds),
+                pass_fds=(theirs.fileno(), ready_w, *pass_fds),
                 env=env,
                 cwd=cwd,
                 start_new_session=True,  # a Ctrl-C in the grader's terminal reaches the grader only
             )
         finally:
             theirs.close()
+            os.close(ready_w)
         # No waiting here: it imports while the grader starts up, and the first
         # request simply queues until it is ready.
 
@@ -192,6 +202,8 @@ class Zygote:
         ZygoteError
             When the zygote is gone or refuses.
         """
+        if getattr(_probing, "active", False):
+            request = dict(request, probe=True)
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
             with self._lock:
@@ -225,6 +237,19 @@ class Zygote:
             self.control.close()
         except OSError:
             pass
+        if self._ready is not None:
+            try:
+                preloaded = os.read(self._ready, 1) != b""
+            except BlockingIOError:
+                preloaded = False  # still importing: it has forked nothing yet
+            except OSError:
+                preloaded = True
+            os.close(self._ready)
+            self._ready = None
+            if not preloaded and self.process is not None and self.process.poll() is None:
+                # A command that ends (an error, --help) before its zygote is ready does not
+                # wait half a second for imports nobody will use.
+                self.process.kill()
         if self.process is not None:
             try:
                 self.process.wait(timeout=15)
@@ -255,6 +280,25 @@ def _zygote_env() -> dict[str, str]:
         if name in os.environ:
             env[name] = os.environ[name]
     return env
+
+
+_probing = threading.local()
+
+
+@contextlib.contextmanager
+def probing() -> Iterator[None]:
+    """Mark the workers this thread forks meanwhile as probes (:mod:`robolab.grading.protection`).
+
+    A probe is forked and isolated like any worker; it only does not count as a
+    submission of the batch for the zygote's idle imports
+    (:data:`~robolab.grading.zygote.IDLE_AFTER`).
+    """
+    previous = getattr(_probing, "active", False)
+    _probing.active = True
+    try:
+        yield
+    finally:
+        _probing.active = previous
 
 
 _shared: Zygote | None = None
@@ -346,6 +390,17 @@ def shared_grader(root: str, env: dict[str, str]) -> Zygote | None:
             atexit.register(grader.close)  # before the worker zygote's close (last in, first out)
             _graders[root] = grader
         return grader
+
+
+def running_graders() -> list[tuple[str, Zygote]]:
+    """The grader zygotes this process started that still run, with their project roots
+    (newest first)."""
+    with _shared_lock:
+        return [
+            (root, grader)
+            for root, grader in reversed(_graders.items())
+            if grader.process is not None and grader.process.poll() is None
+        ]
 
 
 def reset_shared(zygote: Zygote | None = None) -> None:

@@ -77,7 +77,9 @@ PRELOAD_IDLE = (
     "robolab.fiducials",
     "filterpy.kalman",
 )
-#: Requests served before the idle imports start (a batch, not one submission).
+#: Requests served before the idle imports start (a batch, not one submission). A request
+#: marked ``"probe"`` (:mod:`robolab.grading.protection`) does not count: while one submission
+#: is graded the idle imports would take a core from its pytest run and worker.
 IDLE_AFTER = 2
 #: What the grader zygote (the trusted side: pytest, the hidden tests) imports before forking.
 GRADER_PRELOAD = (
@@ -250,7 +252,8 @@ class _Server:
                 os._exit(code)
         for fd in pipes:
             os.close(fd)
-        self.served += 1
+        if not request.get("probe"):  # the protection probe is not a submission of a batch
+            self.served += 1
         self.conns[pid] = conn
         by_fd[conn.fileno()] = pid
         poller.register(conn, select.POLLIN | select.POLLHUP)
@@ -281,13 +284,25 @@ class _Server:
         return worker.main(["robolab.grading.worker", json.dumps(config)])
 
     def _become_grader(self, request: dict, log_fd: int) -> int:  # pragma: no cover
-        """In the forked child: ``python -m pytest ARGS`` in ``cwd``, output to the log."""
+        """In the forked child: ``python -m pytest ARGS`` in ``cwd``, output to the log.
+
+        A request ``{"task": "probe", "out": PATH, ...}`` instead probes what this
+        machine's workers are protected from (:func:`robolab.grading.protection.probe_protection`,
+        with a worker of the worker zygote) and writes the result to ``PATH`` as JSON.
+        """
         keep = {int(fd) for fd in request.get("keep", ())}
         _redirect(log_fd, keep=keep)
         os.chdir(request["cwd"])
         os.environ.clear()
         os.environ.update(request["env"])
         sys.path[0] = request["cwd"]  # what `python -m pytest` run there would have
+        if request.get("task") == "probe":
+            from robolab.grading import protection
+
+            found = protection.probe_protection()
+            with open(request["out"], "w", encoding="utf-8") as f:
+                json.dump(found.to_dict(), f)
+            return 0
         sys.argv = ["pytest", *request["args"]]
         import pytest
 
@@ -361,13 +376,26 @@ def main(argv: list[str] | None = None) -> int:
     config = json.loads(argv[1])
     control = socket.socket(fileno=config["control_fd"])
     os.set_inheritable(control.fileno(), False)
+    if config.get("ready_fd") is not None:
+        os.set_inheritable(config["ready_fd"], False)
     role = config.get("role", "worker")
     try:
         _preload(role)
     except Exception as exc:  # noqa: BLE001 - the grader starts workers cold instead
         print(f"robolab zygote: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 3
-    return _Server(control, role).run()
+    ready = config.get("ready_fd")
+    if ready is not None:  # the grader may no longer just kill it: it may fork from now on
+        try:
+            os.write(ready, b"r")
+        finally:
+            os.close(ready)
+    code = _Server(control, role).run()
+    # Every child is reaped and nothing is kept: exit without tearing down numpy, matplotlib
+    # and pytest module by module (a tenth of a second the grader would wait for).
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
 
 
 if __name__ == "__main__":

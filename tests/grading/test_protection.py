@@ -89,7 +89,7 @@ def test_a_probe_that_cannot_start_is_a_problem():
 def test_a_batch_announces_once_and_marks_the_gradebook(monkeypatch, capsys, tmp_path):
     weak = Protection(SandboxReport(uid=0), readable=[str(REPOSITORY / "solutions" / "demo.py")])
     calls = []
-    monkeypatch.setattr(protection, "describe_protection", lambda: calls.append(1) or weak)
+    monkeypatch.setattr(protection, "batch_protection", lambda: calls.append(1) or weak)
     notebooks = [
         REPOSITORY / "examples" / "submissions" / "demo" / n
         for n in ("correct.ipynb", "wrong.ipynb")
