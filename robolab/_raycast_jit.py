@@ -15,6 +15,11 @@ Two kernels, both plain loops that numba compiles once (and caches on disk):
   a time, each held in registers, with the next cell of each prefetched, so
   that their memory look-ups overlap.
 
+The helpers of :func:`cast` are plain ``njit`` functions that LLVM inlines;
+numba's own ``inline="always"`` gave the same speed but made the first compile
+after an install take 19-23 s instead of about 5 (numba's IR passes grow with
+every inlined copy).
+
 The semantics, the safety argument and the references are in the docstring
 of :mod:`robolab.raycast`.
 """
@@ -167,6 +172,8 @@ def cast(fields, uv, heading, angles, limit, h, w, res, zmax):  # pragma: no cov
     # One state tuple per lane (see _start); a lane whose ray index is `total` is idle.
     # The lanes are spelled out, not an array of states nor a helper per lane: that way
     # they stay in registers (either of the other two forms measured 3-4x slower).
+    # First every ray of the poses on the map, six at a time; then the rays of the
+    # poses off it (rare: a particle that strayed), one at a time.
     i, j = 0, 0
     s0, i, j = _start(i, j, geometry)
     s1, i, j = _start(i, j, geometry)
@@ -215,12 +222,28 @@ def cast(fields, uv, heading, angles, limit, h, w, res, zmax):  # pragma: no cov
                 out[s5[0]] = min(t * res, zmax) if hit else zmax
                 s5, i, j = _start(i, j, geometry)
                 live -= s5[0] >= total
+    for i in range(n):
+        if _on_map(uv[i, 0], uv[i, 1], h, w):
+            continue
+        for j in range(b):
+            state, enters = _start_off_map(i, j, geometry)
+            done = not enters
+            while not done:
+                state, done, hit, t = _step(flat, wp, state)
+                if done and hit:
+                    out[state[0]] = min(t * res, zmax)
     return out[:total].reshape(n, b)
 
 
-@njit(inline="always")
+@njit(nogil=True)
+def _on_map(u0, v0, h, w):  # pragma: no cover - compiled
+    """Whether the origin ``(u0, v0)`` (unpadded cells) lies on the map (half-open)."""
+    return 0.0 <= u0 < w and 0.0 <= v0 < h
+
+
+@njit(nogil=True)
 def _start(i, j, geometry):  # pragma: no cover - compiled
-    """The state of the first ray from pose ``i``, beam ``j`` on that enters the map; next ``i, j``.
+    """The state of the next ray, from pose ``i``, beam ``j`` on, of a pose on the map; next i, j.
 
     The state is ``(m, t, t_end, ci, ri, koff, ax, ay, idx, idy, u0, v0, dx,
     dy)``: the ray's index, its time and end (cells), its cell (padded column,
@@ -228,13 +251,21 @@ def _start(i, j, geometry):  # pragma: no cover - compiled
     offsets, inverse direction, origin, direction). It is kept this short on
     purpose: the lanes of it live in registers, and every value more spills
     (the step signs and ``|1/d|`` are recomputed in :func:`_step` instead).
-    Rays that miss the map keep ``zmax``; when no ray is left the state's
-    index is ``n b`` (an idle lane).
+    Poses off the map are skipped (:func:`_start_off_map` starts their rays),
+    and so are rays that leave the map at once (they keep ``zmax``); when no
+    ray is left the state's index is ``n b`` (an idle lane).
+
+    Every lane of :func:`cast` refills through it, so it holds only the usual
+    case, a ray that starts at ``t = 0`` in its pose's cell (the general one,
+    with slab tests against the map, is :func:`_start_off_map`).
     """
     n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat = geometry
     while i < n:
-        m = i * b + j
         u0, v0 = uv[i, 0], uv[i, 1]
+        if not _on_map(u0, v0, h, w):
+            i, j = i + 1, 0
+            continue
+        m = i * b + j
         # cos and sin of heading + angle by the sum formulas (no trig per ray)
         dx = ch[i] * ca[j] - sh[i] * sa[j]
         dy = sh[i] * ca[j] + ch[i] * sa[j]
@@ -243,38 +274,56 @@ def _start(i, j, geometry):  # pragma: no cover - compiled
             i, j = i + 1, 0
         idx = math.inf if dx == 0.0 else 1.0 / dx
         idy = math.inf if dy == 0.0 else 1.0 / dy
-        if 0.0 <= u0 < w and 0.0 <= v0 < h:
-            # the usual case, a pose on the map: the ray starts at t = 0 in the pose's cell
-            t = 0.0
-            tx_out = ((w if dx > 0.0 else 0.0) - u0) * idx if dx != 0.0 else math.inf
-            ty_out = ((h if dy > 0.0 else 0.0) - v0) * idy if dy != 0.0 else math.inf
-            t_end = min(tx_out, ty_out, limit)
-            ci, ri = int(u0) + 1, int(v0) + 1
-            u0 += 1.0
-            v0 += 1.0
-        else:
-            tx_in, tx_out = _slab(u0, dx, idx, 0.0 <= u0 < w, w)
-            ty_in, ty_out = _slab(v0, dy, idy, 0.0 <= v0 < h, h)
-            t = max(tx_in, ty_in, 0.0)
-            t_end = min(tx_out, ty_out, limit)
-            if not t < t_end:
-                continue
-            # padded coordinates: cell (0, 0) of the map is (1, 1)
-            u0 += 1.0
-            v0 += 1.0
-            ci = int(min(max(math.floor(u0 + t * dx), 1.0), float(w)))
-            ri = int(min(max(math.floor(v0 + t * dy), 1.0), float(h)))
-        koff = ((1 if dx < 0 else 0) + (2 if dy < 0 else 0)) * plane
-        _prefetch(flat, koff + ri * wp + ci)
-        ax = (1.0 if dx >= 0 else 0.0) - u0
-        ay = (1.0 if dy >= 0 else 0.0) - v0
-        state = (m, t, t_end, ci, ri, koff, ax, ay, idx, idy, u0, v0, dx, dy)
+        tx_out = ((w if dx > 0.0 else 0.0) - u0) * idx if dx != 0.0 else math.inf
+        ty_out = ((h if dy > 0.0 else 0.0) - v0) * idy if dy != 0.0 else math.inf
+        t_end = min(tx_out, ty_out, limit)
+        if not 0.0 < t_end:  # on the map's lower or left edge, pointing out of it
+            continue
+        # padded coordinates: cell (0, 0) of the map is (1, 1)
+        ci, ri = int(u0) + 1, int(v0) + 1
+        state = _state(m, 0.0, t_end, ci, ri, u0 + 1.0, v0 + 1.0, dx, dy, idx, idy, plane)
+        _prefetch(flat, state[5] + ri * wp + ci)
         return state, i, j
     idle = (n * b, 0.0, 0.0, 1, 1, 0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0)
     return idle, i, j
 
 
-@njit(inline="always")
+@njit(nogil=True)
+def _start_off_map(i, j, geometry):  # pragma: no cover - compiled
+    """The state of ray ``(i, j)`` of a pose off the map where it enters it; ``(state, enters)``.
+
+    ``enters`` is False for a ray that misses the map (it keeps ``zmax``).
+    """
+    n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat = geometry
+    u0, v0 = uv[i, 0], uv[i, 1]
+    dx = ch[i] * ca[j] - sh[i] * sa[j]
+    dy = sh[i] * ca[j] + ch[i] * sa[j]
+    idx = math.inf if dx == 0.0 else 1.0 / dx
+    idy = math.inf if dy == 0.0 else 1.0 / dy
+    tx_in, tx_out = _slab(u0, dx, idx, 0.0 <= u0 < w, w)
+    ty_in, ty_out = _slab(v0, dy, idy, 0.0 <= v0 < h, h)
+    t = max(tx_in, ty_in, 0.0)
+    t_end = min(tx_out, ty_out, limit)
+    u0 += 1.0
+    v0 += 1.0
+    enters = t < t_end
+    if not enters:
+        t = 0.0  # (the state is not traced)
+    ci = int(min(max(math.floor(u0 + t * dx), 1.0), float(w)))
+    ri = int(min(max(math.floor(v0 + t * dy), 1.0), float(h)))
+    return _state(i * b + j, t, t_end, ci, ri, u0, v0, dx, dy, idx, idy, plane), enters
+
+
+@njit(nogil=True)
+def _state(m, t, t_end, ci, ri, u0, v0, dx, dy, idx, idy, plane):  # pragma: no cover
+    """A lane's state (:func:`_start`) for ray ``m`` at ``t`` in padded cell ``(ci, ri)``."""
+    koff = ((1 if dx < 0 else 0) + (2 if dy < 0 else 0)) * plane
+    ax = (1.0 if dx >= 0 else 0.0) - u0
+    ay = (1.0 if dy >= 0 else 0.0) - v0
+    return (m, t, t_end, ci, ri, koff, ax, ay, idx, idy, u0, v0, dx, dy)
+
+
+@njit(nogil=True)
 def _step(flat, wp, state):  # pragma: no cover - compiled
     """One iteration of a ray: ``(new state, done, hit, t)``, ``t`` the time it started from.
 
@@ -324,7 +373,7 @@ def _step(flat, wp, state):  # pragma: no cover - compiled
     return state, done, hit, t
 
 
-@njit(inline="always")
+@njit(nogil=True)
 def _slab(p, d, inv, inside, size):  # pragma: no cover - compiled
     """``(t_in, t_out)`` of one ray coordinate against the slab ``[0, size]`` (half-open)."""
     if d == 0.0:
