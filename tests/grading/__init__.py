@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 
 from robolab.grading.proxy import Limits
@@ -42,3 +43,20 @@ def write_notebook(
     nb = {"cells": nb_cells, "metadata": metadata, "nbformat": 4, "nbformat_minor": 5}
     path.write_text(json.dumps(nb, indent=1))
     return path
+
+
+def wait_for_idle_import(notebook: Path, module: str, seconds: float = 60.0) -> None:
+    """Open submissions of ``notebook`` until a warm worker has ``module`` imported.
+
+    For the zygote's idle imports: they start once it has served a batch's first
+    submissions and then sits idle. Raises AssertionError when they never come.
+    """
+    from robolab.grading.proxy import open_submission
+
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        with open_submission(notebook, limits=TEST_LIMITS) as later:
+            if later.loaded(module):
+                return
+        time.sleep(0.5)
+    raise AssertionError(f"the zygote never imported {module} while idle")

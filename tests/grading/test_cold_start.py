@@ -25,7 +25,7 @@ import pytest
 from robolab.grading import protection, warm, zygote
 from robolab.grading.proxy import open_submission
 from robolab.grading.runner import start_zygotes
-from tests.grading import TEST_LIMITS, write_notebook
+from tests.grading import TEST_LIMITS, wait_for_idle_import, write_notebook
 
 REPO = Path(__file__).resolve().parents[2]
 warm_only = pytest.mark.skipif(
@@ -167,13 +167,7 @@ def test_the_probe_does_not_count_towards_the_idle_imports(fresh, tmp_path):
     time.sleep(1.0)  # idle; had the probe counted, two requests would have started them
     with open_submission(notebook, limits=TEST_LIMITS) as second:
         assert not second.loaded(first_idle)
-    deadline = time.monotonic() + 60  # ... and after a second submission they do start
-    while time.monotonic() < deadline:
-        with open_submission(notebook, limits=TEST_LIMITS) as later:
-            if later.loaded(first_idle):
-                return
-        time.sleep(0.5)
-    raise AssertionError(f"the zygote never imported {first_idle} while idle")
+    wait_for_idle_import(notebook, first_idle)  # ... and after a second submission they do start
 
 
 def test_a_plain_result_does_not_import_robolab_maps():

@@ -23,7 +23,7 @@ import pytest
 from robolab.grading import sandbox, warm, zygote
 from robolab.grading.proxy import WorkerCrashed, open_submission
 from robolab.grading.runner import grade_submission
-from tests.grading import TEST_LIMITS, write_notebook
+from tests.grading import TEST_LIMITS, wait_for_idle_import, write_notebook
 
 REPO = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.skipif(
@@ -157,13 +157,7 @@ def test_a_batch_gets_the_idle_imports_and_one_submission_does_not_pay_for_them(
     time.sleep(0.5)  # idle, but it has served one submission only
     with open_submission(notebook, limits=TEST_LIMITS) as second:
         assert not second.loaded(last)
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:
-        with open_submission(notebook, limits=TEST_LIMITS) as later:
-            if later.loaded(last):
-                return
-        time.sleep(0.5)
-    raise AssertionError(f"the zygote never imported {last} while idle")
+    wait_for_idle_import(notebook, last)
 
 
 def test_a_crash_restarts_a_warm_worker(running, tmp_path):
