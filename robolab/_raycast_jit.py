@@ -40,9 +40,11 @@ from numba.extending import intrinsic
 #: One byte per cell halves the fields' memory (they are read at random).
 LINEAR, STEP = 128, 32
 FIELD_MAX = LINEAR + STEP * (255 - LINEAR)
-#: ``DECODE[v]``: the distance ``D`` (cells) that code ``v`` guarantees.
-DECODE = np.array([v if v < LINEAR else LINEAR + STEP * (v - LINEAR) for v in range(256)])
-DECODE_F = DECODE.astype(np.float64)
+#: ``DECODE[v]``: the distance ``D`` (cells) that code ``v`` guarantees (whole numbers,
+#: stored as floats: the kernel computes jump times with them).
+DECODE = np.array(
+    [v if v < LINEAR else LINEAR + STEP * (v - LINEAR) for v in range(256)], dtype=np.float64
+)
 
 
 @njit(cache=True, nogil=True)
@@ -351,7 +353,7 @@ def _step(flat, wp, state):  # pragma: no cover - compiled
     adx = min(abs(idx), 1e300)
     ady = min(abs(idy), 1e300)
     code = flat[koff + ri * wp + ci]
-    s = DECODE_F[code]
+    s = DECODE[code]
     tx = (ci + ax) * idx  # when the ray leaves the cell's column / row
     ty = (ri + ay) * idy
     jx = tx + (s - 1.0) * adx
