@@ -88,3 +88,34 @@ def test_student_edition_never_cites_a_source_document(edition):
     bad = [f"{where}: ...{phrase}..."
            for where, text in _texts(edition) for phrase in violations(text)]
     assert not bad, f"{len(bad)} reference(s) to source documents:\n" + "\n".join(bad[:60])
+
+
+def _feedback_strings(path: Path):
+    """What of a hidden-test module can reach a student's feedback: the docstrings of its
+    tests (the title of each check) and every string literal inside a function (assertion
+    messages, ``pytest.fail`` texts, f-strings). Module docstrings and comments cannot."""
+    import ast
+
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    for node in ast.walk(tree):
+        if not isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            continue
+        doc = ast.get_docstring(node)
+        if doc and node.name.startswith("test"):
+            yield f"{path.name}:{node.lineno} {node.name} (title)", doc
+        body = node.body[1:] if doc else node.body
+        for stmt in body:
+            for sub in ast.walk(stmt):
+                if isinstance(sub, ast.Constant) and isinstance(sub.value, str):
+                    yield f"{path.name}:{sub.lineno} {node.name}", sub.value
+
+
+def test_hidden_test_feedback_never_cites_a_source_document():
+    """The check titles and messages a student reads in feedback cite no source document."""
+    bad = [
+        f"{where}: ...{phrase}..."
+        for path in sorted((ROOT / "tests" / "labs").glob("test_*.py"))
+        for where, text in _feedback_strings(path)
+        for phrase in violations(text)
+    ]
+    assert not bad, f"{len(bad)} reference(s) in feedback text:\n" + "\n".join(bad[:80])

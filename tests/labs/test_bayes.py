@@ -57,7 +57,7 @@ def _random_column_stochastic(rng, n):
 # =============================== bayes_posterior (30) ===============================
 @grades("bayes_posterior", points=6)
 def test_bayes_posterior_reference_values(lab):
-    """bayes_posterior: the seed's door (3/4, 1/4), the book's first step, and three states"""
+    """bayes_posterior: the door example (3/4, 1/4), the book's first step, and three states"""
     # Seed: (2/3 * 3/5, 1/3 * 2/5) = (2/5, 2/15); sum 8/15 -> (3/4, 1/4).
     np.testing.assert_allclose(
         _f(lab.bayes_posterior([2 / 3, 1 / 3], [3 / 5, 2 / 5])),

@@ -318,7 +318,7 @@ def test_h_jacobian_matches_finite_differences(lab):
 @pytest.mark.grades("h_jacobian", points=4)
 def test_h_jacobian_known_value_and_broadcasting(lab):
     # the seed's hints: d phi / d mu_x = -(mu_y - y) / q, d phi / d mu_y = (mu_x - x) / q
-    """The seed's hints at (3, 4) from the origin, and broadcasting over (5, 3) landmarks."""
+    """The Jacobian at (3, 4) seen from the origin, and broadcasting over (5, 3) landmarks."""
     np.testing.assert_allclose(
         _f(lab.h_jacobian([3.0, 4.0], [0.0, 0.0, 1.0])),
         [[0.6, 0.8], [-4 / 25, 3 / 25]],
@@ -836,7 +836,7 @@ def fiducial_run():
     "test_predict_poses_noise_moments_match_Q",
 )
 def test_fastslam_maps_the_fiducials_and_tracks_the_robot(lab, fiducial_run, request):
-    """Robot seed 1, 50 particles.
+    """Robot random seed 1, 50 particles.
 
     Landmark RMSE < 0.4 m and final pose error < 0.5 m (median of 3).
     """

@@ -121,7 +121,7 @@ def test_move_particles_without_noise_is_exact(lab):
         p[0, :2],
         end,
         atol=1e-9,
-        err_msg="the seed's 5 commands from (10, 15, 0), no noise: expected the command path's end",
+        err_msg="the lab's 5 commands from (10, 15, 0), no noise: expected the command path's end",
     )
 
 
@@ -557,7 +557,7 @@ def _section_f(seed=2024):
 @pytest.mark.grades("particle_filter", points=9)
 @requires(*FILTER_EXACT)
 def test_particle_filter_final_error_on_section_f(lab):
-    """particle_filter: on the seed's path the final estimate ends within 3 of the truth"""
+    """particle_filter: on the lab's path the final estimate ends within 3 of the truth"""
     # Bound from the reference: on this true path (seed 2024), 300 filter seeds give a final
     # error of median 0.80, max 1.16; dead reckoning (no weighting) ends 6.2 to 8.6 away and the
     # noise-free command path 7.5 away. 3.0 leaves room for a different but correct draw order.
@@ -571,15 +571,15 @@ def test_particle_filter_final_error_on_section_f(lab):
         assert path.shape == (6, 2), f"5 steps: expected a path of shape (6, 2), got {path.shape}"
         err = np.linalg.norm(path[-1] - true[-1])
         assert err < 3.0, (
-            f"the seed's path, 1000 particles, filter seed {seed}: expected a final position error "
-            f"below 3.0 (the reference stays below 1.2), got {err:.2f}"
+            f"the lab's path, 1000 particles, filter random seed {seed}: expected a final "
+            f"position error below 3.0 (the reference stays below 1.2), got {err:.2f}"
         )
 
 
 @pytest.mark.grades("particle_filter", points=5)
 @requires(*FILTER_EXACT)
 def test_particle_filter_mean_error_along_the_path(lab):
-    """particle_filter: the mean position error along the seed's path stays below 3.5"""
+    """particle_filter: the mean position error along the lab's path stays below 3.5"""
     # Reference: mean error over the 6 positions 2.12 to 2.34 over 100 filter seeds; the
     # command path is 7.1 off on average.
     landmarks, true, z = _section_f()
@@ -590,7 +590,7 @@ def test_particle_filter_mean_error_along_the_path(lab):
     )
     err = np.linalg.norm(path - true, axis=1).mean()
     assert err < 3.5, (
-        f"the seed's path, 1000 particles: expected a mean position error below 3.5 (the "
+        f"the lab's path, 1000 particles: expected a mean position error below 3.5 (the "
         f"reference stays below 2.4), got {err:.2f}"
     )
 

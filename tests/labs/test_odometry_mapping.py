@@ -600,7 +600,7 @@ def test_occupancy_from_counts_bad_input(lab):
 
 @pytest.mark.grades("clip_map", points=3)
 def test_clip_map_values(lab):
-    """Below the threshold -> 0, at or above -> 1, unknown stays -1 (seed 004, figure 1)."""
+    """Below the threshold -> 0, at or above -> 1, unknown stays -1."""
     occ = np.array([[-1.0, 0.0, 0.2, 0.49999], [0.5, 0.51, 1.0, -1.0]])
     got = _f(lab.clip_map(occ))
     np.testing.assert_array_equal(
