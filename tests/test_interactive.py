@@ -67,7 +67,7 @@ def test_in_a_kernel_sliders_redraw_the_figure_shown_through_a_handle(monkeypatc
 
 @pytest.mark.slow
 def test_a_notebook_run_headless_saves_the_figure_of_the_initial_values(tmp_path):
-    """With widgets: one slider per control, the figure drawn at the defaults and on each move."""
+    """Run headless by Jupyter (nbclient), the saved cell holds a PNG, not a widget repr."""
     import nbformat
     from nbclient import NotebookClient
 
