@@ -132,7 +132,7 @@ def test_mcl_tracks_the_real_neato_robot():
     from robolab.realdata.localization import neato_localization
     from solutions.mcl import DEFAULT_PARAMS, init_gaussian, likelihood_field, mcl_step
 
-    data = neato_localization(_need("olin_ac109_1"))
+    data = neato_localization(folder=_need("olin_ac109_1"))
     field = likelihood_field(data.grid, 0.1, 1.0)
     params = {
         **DEFAULT_PARAMS,
@@ -151,4 +151,28 @@ def test_missing_real_data_raises_a_friendly_note(tmp_path):
     from robolab.realdata.localization import neato_localization
 
     with pytest.raises(DataSetUnavailable, match="fetch"):
-        neato_localization(tmp_path)
+        neato_localization(folder=tmp_path)
+
+
+def test_neato_localization_takes_any_recording_and_its_map(tmp_path):
+    """Another recording of the robot loads by path; a missing file or an ambiguous map is named."""
+    from robolab.realdata.localization import neato_localization
+
+    with pytest.raises(FileNotFoundError, match="bag"):
+        neato_localization(tmp_path / "other.bag", tmp_path / "other.yaml")
+    (tmp_path / "other.bag").write_bytes(b"")
+    (tmp_path / "a.yaml").write_text("")
+    (tmp_path / "b.yaml").write_text("")
+    with pytest.raises(ValueError, match="map="):
+        neato_localization(tmp_path / "other.bag")
+    folder = _need("olin_ac109_1")
+    copy = tmp_path / "copy"
+    copy.mkdir()
+    (copy / "run2.bag").symlink_to(folder / "ac109_1_demo.bag")
+    for name in ("ac109_1.yaml", "ac109_1.pgm"):
+        (copy / name).symlink_to(folder / name)
+    data = neato_localization(copy / "run2.bag")  # the one map beside it
+    again = neato_localization(folder=folder)
+    np.testing.assert_array_equal(data.truth, again.truth)
+    late = neato_localization(folder=folder, scan_delay=0.3)
+    assert late.t.size <= again.t.size and not np.allclose(late.odom, again.odom)
