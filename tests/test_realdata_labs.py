@@ -49,7 +49,21 @@ def test_fastslam_on_freiburg_maps_the_landmarks_with_and_without_ess(freiburg, 
     steps_with_obs = sum(len(o) > 0 for o in freiburg.observations)
     assert every["resamples"] == steps_with_obs
     assert 0 < ess["resamples"] < steps_with_obs / 5
+    # the first step sees only new landmarks: nothing to resample on, so not counted
+    first = run_fastslam_freiburg(
+        _first_steps(freiburg, 1), 100, np.random.default_rng(seed), ess_threshold=0.5, **lab
+    )
+    assert first["resamples"] == 0
     assert np.all(np.isfinite(ess["landmarks"])) and ess["path"].shape == (len(freiburg) + 1, 3)
+
+
+def _first_steps(data, n):
+    """The first ``n`` steps of a Freiburg data set."""
+    import dataclasses
+
+    fields = {f.name for f in dataclasses.fields(data)}
+    cut = {"odometry": data.odometry[:n], "observations": data.observations[:n]}
+    return dataclasses.replace(data, **{k: v for k, v in cut.items() if k in fields})
 
 
 def test_fastslam_ess_none_is_the_old_behaviour(freiburg):

@@ -81,8 +81,13 @@ def run_fastslam_freiburg(
         obs = data.indexed_observations(i)
         state = fastslam_step(state, [t, r2], obs, q_drive, Qt, rng, 1.0, resample)
         if len(obs):
-            seen[obs[:, 2].astype(np.intp)] = True
-            resamples += bool(np.all(state["weights"] == state["weights"][0]))
+            ids = obs[:, 2].astype(np.intp)
+            # Equal weights after the step mean it resampled, unless every landmark it saw
+            # was new: first sightings weigh all particles alike, so with an ESS threshold
+            # nothing was resampled (step 0 is such a step).
+            informative = resample is True or bool(seen[ids].any())
+            resamples += informative and bool(np.all(state["weights"] == state["weights"][0]))
+            seen[ids] = True
         path.append(_mean_pose(state))
     w = np.asarray(state["weights"])
     landmarks = np.einsum("k,kjd->jd", w, np.asarray(state["means"]))
