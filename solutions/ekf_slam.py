@@ -350,7 +350,7 @@ def _steps(robot_or_run, R, Qt):
     return steps, x0, k, check_covariance("R", R, 3), check_covariance("Qt", Qt, 2, definite=True)
 
 
-def _observe_step(mu, sigma, z, seen, qt, correct=correct, add_landmark=add_landmark):
+def _observe_step(mu, sigma, z, seen, qt):
     """Correct with the landmarks in the map, then add the new ones (``seen`` is updated)."""
     z = np.asarray(z, dtype=float).reshape(-1, 3)
     ids = z[:, 2].astype(np.intp)

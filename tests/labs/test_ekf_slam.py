@@ -165,14 +165,13 @@ def test_predict_covariance_matches_finite_differences(lab, motion):
         u = [rng.uniform(0.2, 2.0), rng.uniform(-1, 1)]
         if motion == "odometry":
             u = [rng.uniform(-1, 1), rng.uniform(0.2, 2.0), rng.uniform(-1, 1)]
-        dt = 0.3
         R = np.diag(rng.uniform(1e-4, 1e-2, 3))
-        G = _jacobian(lambda x: _motion(x, u, dt, motion), mu, wrap_rows=(2,))
+        G = _jacobian(lambda x, u=u: _motion(x, u, 0.3, motion), mu, wrap_rows=(2,))
         F = np.zeros((3, len(mu)))
         F[:, :3] = np.eye(3)
-        expected = (_motion(mu, u, dt, motion), G @ sigma @ G.T + F.T @ R @ F)
+        expected = (_motion(mu, u, 0.3, motion), G @ sigma @ G.T + F.T @ R @ F)
         expected[0][2] = _wrap(expected[0][2])
-        got = lab.predict(mu, sigma, u, R, dt=dt, motion=motion)
+        got = lab.predict(mu, sigma, u, R, dt=0.3, motion=motion)
         _assert_belief(
             got,
             expected,
@@ -184,7 +183,7 @@ def test_predict_covariance_matches_finite_differences(lab, motion):
 
 @pytest.mark.grades("predict", points=4)
 def test_predict_odometry_worked_example_and_heading_wrap(lab):
-    """Odometry (r1, t, r2) = (pi/2, 2, pi/2) from heading 3: turn, drive 2 m, turn; heading wraps."""
+    """Odometry (r1, t, r2) = (pi/2, 2, pi/2) from heading 3: turn, drive, turn; heading wraps."""
     mu = np.array([0.0, 0.0, 3.0, 1.0, 1.0])
     sigma = np.zeros((5, 5))
     got_mu, got_sigma = (
@@ -206,7 +205,7 @@ def test_predict_odometry_worked_example_and_heading_wrap(lab):
 
 @pytest.mark.grades("predict", points=4)
 def test_predict_leaves_the_landmark_block_alone(lab):
-    """Many landmarks, a full landmark block: the landmark-landmark block and means are unchanged."""
+    """Twelve landmarks, a full landmark block: that block and the landmark means are unchanged."""
     rng = np.random.default_rng(3)
     mu, sigma = _random_belief(rng, 12)
     before = (mu.copy(), sigma.copy())
@@ -355,7 +354,9 @@ def test_correct_one_landmark_one_observation(lab):
         got = lab.correct(mu, sigma, obs, QT)
         _assert_belief(got, _kalman(mu, sigma, obs, QT), f"one observation, trial {trial}",
                        atol=1e-8, rtol=1e-6)
-        for name, arr, old in zip(("mu", "sigma", "observations"), (mu, sigma, obs), before):
+        for name, arr, old in zip(
+            ("mu", "sigma", "observations"), (mu, sigma, obs), before, strict=True
+        ):
             np.testing.assert_array_equal(arr, old, err_msg=f"correct modified {name} passed in")
 
 
@@ -382,8 +383,8 @@ def test_correct_matches_filterpy_with_stacked_observations(lab):
         H = np.vstack([_jacobian(lambda x, j=j: _h(x, j), mu, wrap_rows=(1,)) for j in ids])
         ekf.update(
             obs[:, :2].ravel(),
-            HJacobian=lambda x: H,
-            Hx=lambda x: np.concatenate([_h(x, j) for j in ids]),
+            HJacobian=lambda x, H=H: H,
+            Hx=lambda x, ids=ids: np.concatenate([_h(x, j) for j in ids]),
             R=np.kron(np.eye(len(ids)), Qt),
             residual=residual,
         )
@@ -584,7 +585,7 @@ def _dense_ekf_slam(run, R, Qt, coupled=True):
     F[:, :3] = np.eye(3)
     path = [mu[:3].copy()]
     for t, u in enumerate(run.commands):
-        G = _jacobian(lambda x: _motion(x, u, run.dt, "unicycle"), mu, wrap_rows=(2,))
+        G = _jacobian(lambda x, u=u: _motion(x, u, run.dt, "unicycle"), mu, wrap_rows=(2,))
         mu = _motion(mu, u, run.dt, "unicycle")
         sigma = G @ sigma @ G.T + F.T @ R @ F
         obs = run.observations(t)
@@ -627,7 +628,7 @@ def _lm_rmse(landmarks, truth):
     "test_add_landmark_is_the_limit_of_an_infinite_prior",
 )
 def test_ekf_slam_matches_a_dense_filter(lab):
-    """Eight seconds of the fiducial robot: path, map and covariance equal the book's dense filter."""
+    """Eight seconds of the fiducial robot: path, map and covariance equal a dense filter's."""
     run = FiducialRobot(seed=3, n_steps=80).to_run()
     out = lab.ekf_slam(run, history=True)
     path, mu, sigma, seen = _dense_ekf_slam(run, run.Q, run.Qt)
@@ -682,7 +683,7 @@ def test_ekf_slam_reports_shapes_start_and_unobserved_landmarks(lab):
 
 #: Bounds on the bundled run (data/fastslam.npz, robot seed 0, 60 s). The reference gives
 #: landmark RMSE 0.099 m and final pose error 0.013 m (maximum along the path 0.29 m); dead
-#: reckoning ends 1.4 m off. The fiducials are seen within +-90 degrees of the heading, so a
+#: reckoning ends 2.2 m off. The fiducials are seen within +-90 degrees of the heading, so a
 #: missing bearing wrap does not show on this run: the correction tests catch it.
 LANDMARK_RMSE_BOUND = 0.2
 FINAL_POSE_BOUND = 0.15
@@ -775,7 +776,7 @@ def _freiburg_like(tmp_path):
     landmarks += rng.normal(0, 0.3, landmarks.shape)
     pose = np.array([0.0, 0.0, 0.0])
     truth, lines = [pose], []
-    for i in range(200):
+    for i in range(300):
         target = np.array([[2.0, 2.0], [8.0, 2.0], [8.0, 8.0], [2.0, 8.0]])[(i // 12) % 4]
         r1 = _wrap(np.arctan2(*(target - pose[:2])[::-1]) - pose[2]) * 0.5
         t, r2 = 0.5, 0.0
@@ -786,8 +787,8 @@ def _freiburg_like(tmp_path):
         truth.append(pose)
         d = landmarks - pose[:2]
         rng_, bear = np.hypot(*d.T), _wrap(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
-        for j in np.flatnonzero((rng_ < 4.0) & (np.abs(bear) < np.pi / 2)):
-            z = np.array([rng_[j], bear[j]]) + rng.normal(0, 0.05, 2)
+        for j in np.flatnonzero((rng_ < 5.0) & (np.abs(bear) < np.pi / 2)):
+            z = np.array([rng_[j], bear[j]]) + rng.normal(0, [0.05, 0.02])
             lines.append(f"SENSOR {j + 1} {z[0]:.6f} {z[1]:.6f}")
     (tmp_path / "world.dat").write_text(
         "".join(f"{j + 1} {x:.6f} {y:.6f}\n" for j, (x, y) in enumerate(landmarks))
@@ -799,7 +800,7 @@ def _freiburg_like(tmp_path):
 #: Odometry-model runs (after SE(2) alignment of the map onto the true landmarks):
 #: on the Freiburg course data (../shared/data/freiburg_course) the reference gives
 #: 0.022 m landmark RMSE with R = diag(0.1, 0.1, 0.01), Qt = 0.01 I; where that data is not
-#: on disk, a simulated run in its format (9 landmarks, 200 steps) stands in: 0.02 m.
+#: on disk, a simulated run in its format (9 landmarks, 300 steps) stands in: 0.018 m.
 FREIBURG_RMSE_BOUND = 0.06
 
 
