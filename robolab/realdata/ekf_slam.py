@@ -19,11 +19,12 @@ from robolab.geometry import transform_points
 
 __all__ = ["MOTION_NOISE", "MEASUREMENT_NOISE", "run_ekf_slam_freiburg"]
 
-#: Motion noise covariance R in the pose's coordinates (m^2, m^2, rad^2) per odometry step:
-#: generous, since the data carries no noise model (lab 07's FastSLAM uses its own values).
-MOTION_NOISE = np.diag([0.1, 0.1, 0.01])
-#: Measurement noise covariance Qt of range (m^2) and bearing (rad^2).
-MEASUREMENT_NOISE = 0.01 * np.eye(2)
+#: Motion noise covariance R in the pose's coordinates (m^2, m^2, rad^2) per odometry step: lab
+#: 07's odometry noise on this data (0.01 m of translation, two turns of 0.005 rad each) as
+#: additive pose noise. The data carries no noise model of its own.
+MOTION_NOISE = np.diag([0.01**2, 0.01**2, 2 * 0.005**2])
+#: Measurement noise covariance Qt of range (m^2) and bearing (rad^2), as lab 07's.
+MEASUREMENT_NOISE = np.diag([0.1, 0.1])
 
 
 def run_ekf_slam_freiburg(
