@@ -32,7 +32,7 @@ import numpy as np
 
 from robolab.fiducials import DT, as_robot
 from robolab.geometry import wrap_angle
-from robolab.validation import as_array, check_covariance, check_positive
+from robolab.validation import as_array, as_observations, check_covariance, check_positive
 
 __all__ = ["predict", "observation", "correct", "add_landmark", "ekf_slam"]
 
@@ -449,16 +449,4 @@ def _landmark_ids(name, j, k, scalar=False):
 
 
 def _observations(observations, k) -> np.ndarray:
-    if observations is None:
-        return np.empty((0, 3))
-    obs = as_array("observations", observations, finite=True)
-    if obs.size == 0:
-        return np.empty((0, 3))
-    if obs.ndim != 2 or obs.shape[1] != 3:
-        raise ValueError(
-            f"observations must have shape (k, 3) rows [range, bearing, id], got {obs.shape}"
-        )
-    _landmark_ids("observations' ids", obs[:, 2], k)
-    if np.any(obs[:, 0] < 0):
-        raise ValueError(f"observations' ranges must be >= 0, got {obs[:, 0].tolist()}")
-    return obs
+    return as_observations("observations", observations, k)
