@@ -35,30 +35,53 @@ def freiburg():
 @pytest.mark.parametrize("seed", [0, 1])
 def test_fastslam_on_freiburg_maps_the_landmarks_with_and_without_ess(freiburg, seed):
     from robolab.realdata.fastslam import run_fastslam_freiburg
+    from solutions.fastslam import fastslam_step, init_particles
 
-    every = run_fastslam_freiburg(freiburg, 100, np.random.default_rng(seed), ess_threshold=None)
-    ess = run_fastslam_freiburg(freiburg, 100, np.random.default_rng(seed), ess_threshold=0.5)
+    lab = {"fastslam_step": fastslam_step, "init_particles": init_particles}
+    def run(ess_threshold):
+        rng = np.random.default_rng(seed)
+        return run_fastslam_freiburg(freiburg, 100, rng, ess_threshold=ess_threshold, **lab)
+
+    every, ess = run(None), run(0.5)
     assert every["rmse_aligned"] < 0.05 and ess["rmse_aligned"] < 0.05
     assert every["rmse"] < 0.2 and ess["rmse"] < 0.2  # the start at the origin fixes the frame
     # the book resamples after every step with an observation; ESS only when depleted
     steps_with_obs = sum(len(o) > 0 for o in freiburg.observations)
     assert every["resamples"] == steps_with_obs
     assert 0 < ess["resamples"] < steps_with_obs / 5
+    # the first step sees only new landmarks: nothing to resample on, so not counted
+    first = run_fastslam_freiburg(
+        _first_steps(freiburg, 1), 100, np.random.default_rng(seed), ess_threshold=0.5, **lab
+    )
+    assert first["resamples"] == 0
     assert np.all(np.isfinite(ess["landmarks"])) and ess["path"].shape == (len(freiburg) + 1, 3)
+
+
+def _first_steps(data, n):
+    """The first ``n`` steps of a Freiburg data set."""
+    import dataclasses
+
+    fields = {f.name for f in dataclasses.fields(data)}
+    cut = {"odometry": data.odometry[:n], "observations": data.observations[:n]}
+    return dataclasses.replace(data, **{k: v for k, v in cut.items() if k in fields})
 
 
 def test_fastslam_ess_none_is_the_old_behaviour(freiburg):
     """ess_threshold=None is resample=True: the same run as a step that always resamples."""
     from robolab.realdata.fastslam import run_fastslam_freiburg
-    from solutions.fastslam import fastslam_step
+    from solutions.fastslam import fastslam_step, init_particles
 
     def old_step(state, command, observations, Q, Qt, rng, dt=1.0, resample=True):
         assert resample is True
         return fastslam_step(state, command, observations, Q, Qt, rng, dt)
 
-    a = run_fastslam_freiburg(freiburg, 30, np.random.default_rng(4), ess_threshold=None)
+    a = run_fastslam_freiburg(
+        freiburg, 30, np.random.default_rng(4), ess_threshold=None,
+        fastslam_step=fastslam_step, init_particles=init_particles,
+    )
     b = run_fastslam_freiburg(
-        freiburg, 30, np.random.default_rng(4), ess_threshold=None, fastslam_step=old_step
+        freiburg, 30, np.random.default_rng(4), ess_threshold=None,
+        fastslam_step=old_step, init_particles=init_particles,
     )
     np.testing.assert_array_equal(a["landmarks"], b["landmarks"])
 
@@ -123,7 +146,7 @@ def test_mcl_tracks_the_real_neato_robot():
     from robolab.realdata.localization import neato_localization
     from solutions.mcl import DEFAULT_PARAMS, init_gaussian, likelihood_field, mcl_step
 
-    data = neato_localization(_need("olin_ac109_1"))
+    data = neato_localization(folder=_need("olin_ac109_1"))
     field = likelihood_field(data.grid, 0.1, 1.0)
     params = {
         **DEFAULT_PARAMS,
@@ -142,7 +165,31 @@ def test_missing_real_data_raises_a_friendly_note(tmp_path):
     from robolab.realdata.localization import neato_localization
 
     with pytest.raises(DataSetUnavailable, match="fetch"):
-        neato_localization(tmp_path)
+        neato_localization(folder=tmp_path)
+
+
+def test_neato_localization_takes_any_recording_and_its_map(tmp_path):
+    """Another recording of the robot loads by path; a missing file or an ambiguous map is named."""
+    from robolab.realdata.localization import neato_localization
+
+    with pytest.raises(FileNotFoundError, match="bag"):
+        neato_localization(tmp_path / "other.bag", tmp_path / "other.yaml")
+    (tmp_path / "other.bag").write_bytes(b"")
+    (tmp_path / "a.yaml").write_text("")
+    (tmp_path / "b.yaml").write_text("")
+    with pytest.raises(ValueError, match="map="):
+        neato_localization(tmp_path / "other.bag")
+    folder = _need("olin_ac109_1")
+    copy = tmp_path / "copy"
+    copy.mkdir()
+    (copy / "run2.bag").symlink_to(folder / "ac109_1_demo.bag")
+    for name in ("ac109_1.yaml", "ac109_1.pgm"):
+        (copy / name).symlink_to(folder / name)
+    data = neato_localization(copy / "run2.bag")  # the one map beside it
+    again = neato_localization(folder=folder)
+    np.testing.assert_array_equal(data.truth, again.truth)
+    late = neato_localization(folder=folder, scan_delay=0.3)
+    assert late.t.size <= again.t.size and not np.allclose(late.odom, again.odom)
 
 
 # -- lab 08: EKF-SLAM on Freiburg ------------------------------------------------------------
@@ -150,7 +197,9 @@ def test_ekf_slam_on_freiburg_maps_the_landmarks(freiburg):
     """0.018 m landmark RMSE after alignment (0.11 m as estimated), every landmark mapped."""
     from robolab.realdata.ekf_slam import run_ekf_slam_freiburg
 
-    out = run_ekf_slam_freiburg(freiburg)
+    from solutions.ekf_slam import ekf_slam
+
+    out = run_ekf_slam_freiburg(freiburg, ekf_slam)
     assert out["observed"].all() and out["path"].shape == (len(freiburg) + 1, 3)
     assert out["rmse_aligned"] < 0.025
     assert out["rmse"] < 0.15  # the start at the origin fixes the frame, up to a small turn

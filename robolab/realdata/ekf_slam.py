@@ -29,20 +29,21 @@ MEASUREMENT_NOISE = np.diag([0.1, 0.1])
 
 def run_ekf_slam_freiburg(
     data: FreiburgData,
+    ekf_slam: Callable,
     *,
-    ekf_slam: Callable | None = None,
     R=MOTION_NOISE,
     Qt=MEASUREMENT_NOISE,
     history: bool = False,
 ) -> dict:
-    """Run EKF-SLAM over a Freiburg data set and score the map; the lab's function may be passed.
+    """Run the lab's ``ekf_slam`` over a Freiburg data set and score the map.
 
     Parameters
     ----------
     data : FreiburgData
         From :func:`robolab.datasets.read_freiburg`.
-    ekf_slam : callable, optional
-        The lab's ``ekf_slam(run, R, Qt, history)``; default the reference solution's.
+    ekf_slam : callable
+        The lab's ``ekf_slam(run, R, Qt, history)``, as the notebook defines it (the
+        library never imports the reference solutions: the student edition has none).
     R, Qt : array_like
         Noise covariances (:data:`MOTION_NOISE`, :data:`MEASUREMENT_NOISE`).
     history : bool
@@ -57,8 +58,8 @@ def run_ekf_slam_freiburg(
     """
     if not isinstance(data, FreiburgData):
         raise TypeError(f"data must be a FreiburgData (read_freiburg), got {type(data).__name__}")
-    if ekf_slam is None:
-        from solutions.ekf_slam import ekf_slam
+    if not callable(ekf_slam):
+        raise TypeError(f"ekf_slam must be the lab's function, got {type(ekf_slam).__name__}")
     out = dict(ekf_slam(data, R=R, Qt=Qt, history=history))
     landmarks = np.asarray(out["landmarks"], dtype=float)
     err = np.hypot(*(landmarks - data.landmarks).T)
