@@ -26,8 +26,9 @@ import numpy as np
 from robolab.geometry import wrap_angle
 from solutions.ekf_slam import _observe, correct, predict
 
-KS = (5, 10, 25, 50, 100, 200, 400)
+KS = timing.sized((5, 10, 25, 50, 100, 200, 400), (5, 10))
 DENSE_MAX_K = 200
+REPEATS = timing.sized(3, 1)
 N_OBS = 3
 R = np.diag([0.02**2, 0.02**2, np.deg2rad(0.5) ** 2])
 QT = np.diag([0.1**2, np.deg2rad(2.0) ** 2])
@@ -91,12 +92,12 @@ def main():
     previous = None
     for k in KS:
         mu, sigma = mapped_state(k, rng)
-        steps = workload(k, 40 if k <= 100 else 10, rng)
+        steps = workload(k, timing.sized(40 if k <= 100 else 10, 2), rng)
         fns = {"reference": lambda mu=mu, sigma=sigma, s=steps: run_reference(mu, sigma, s)}
         dense_steps = steps[: 10 if k <= 50 else 3]
         if k <= DENSE_MAX_K:
             fns["dense"] = lambda mu=mu, sigma=sigma, s=dense_steps: run_dense(mu, sigma, s)
-        best = timing.interleaved(fns, 3)
+        best = timing.interleaved(fns, REPEATS)
         ref = best["reference"] / len(steps)
         dense = best["dense"] / len(dense_steps) if "dense" in best else float("nan")
         growth = ""
