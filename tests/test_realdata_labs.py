@@ -289,3 +289,17 @@ def test_ekf_slam_hidden_test_stand_in_for_freiburg_meets_its_bound(tmp_path):
     rmse = np.sqrt(np.mean(np.sum((aligned - data.landmarks) ** 2, axis=1)))
     assert rmse < FREIBURG_RMSE_BOUND / 2
     assert np.max(np.hypot(*(out["path"][:, :2] - truth[:, :2]).T)) < 1.0
+
+
+# -- lab 08 on the Freiburg course data ---------------------------------------------------
+def test_ekf_slam_maps_the_real_freiburg_landmarks(freiburg):
+    """The reference EKF-SLAM with lab 07's noise values: 0.018 m after alignment (bound 0.06)."""
+    from robolab.evaluation import align_points
+    from robolab.geometry import transform_points
+    from solutions.ekf_slam import ekf_slam
+
+    out = ekf_slam(freiburg, R=np.diag([1e-4, 1e-4, 5e-5]), Qt=np.diag([0.1, 0.1]))
+    lm = np.asarray(out["landmarks"], dtype=float)
+    aligned = transform_points(lm, align_points(lm, freiburg.landmarks))
+    rmse = float(np.sqrt(np.nanmean(np.sum((aligned - freiburg.landmarks) ** 2, axis=1))))
+    assert rmse < 0.06
