@@ -81,6 +81,8 @@ WEIGHT_SUM_ATOL = 1e-9
 ANGLE_QUANTUM = 1e-9
 #: beam_range_finder_model(log=True) recomputes a beam in log space when its mixture is below this.
 LOG_SPACE_BELOW = 1e-280
+#: erf(x) rounds to exactly 1.0 in float64 for x >= this (scipy: from 5.93 on).
+ERF_IS_ONE = 6.0
 #: pose_likelihood_map evaluates about this many beams at a time (bounds memory).
 CHUNK_BEAMS = 1 << 20
 
@@ -123,12 +125,21 @@ def _out(arr: np.ndarray):
 def _hit_mass(z_star: np.ndarray, z_max: float, sigma: float) -> np.ndarray:
     """``Phi((z_max - z*) / sigma) - Phi(-z* / sigma)``, accurate for any sigma.
 
-    As ``(erf(b / sqrt 2) - erf(a / sqrt 2)) / 2`` with ``a <= 0 <= b``: the terms never
-    cancel, even when ``sigma >> z_max`` makes both tiny (``ndtr(b) - ndtr(a)`` would
-    round to 0 there, and the normalizer to inf).
+    As ``(erf(b / sqrt 2) + erf(a / sqrt 2)) / 2`` with ``a = z* / sigma >= 0`` and
+    ``b = (z_max - z*) / sigma >= 0``: the terms never cancel, even when
+    ``sigma >> z_max`` makes both tiny (``ndtr(b) - ndtr(-a)`` would round to 0 there,
+    and the normalizer to inf). ``erf`` is the costly part of the whole model and rounds
+    to exactly 1.0 from ``ERF_IS_ONE`` on, so it is evaluated only for the ranges
+    within ``ERF_IS_ONE * sqrt(2) * sigma`` of 0 or of ``z_max``.
     """
-    root2 = np.sqrt(2.0)
-    return 0.5 * (erf((z_max - z_star) / sigma / root2) - erf(-z_star / sigma / root2))
+    scale = sigma * np.sqrt(2.0)
+    halves = []
+    for arg in (z_star / scale, (z_max - z_star) / scale):
+        e = np.ones(np.shape(arg))
+        near = arg < ERF_IS_ONE
+        e[near] = erf(arg[near])
+        halves.append(e)
+    return 0.5 * (halves[0] + halves[1])
 
 
 def p_hit(z, z_star, z_max, sigma_hit):
@@ -408,6 +419,41 @@ def _log_mixture(z: np.ndarray, z_star: np.ndarray, prm: dict[str, float]) -> np
         return shift + np.log(np.exp(terms - shift).sum(axis=0))
 
 
+def _mixture(z: np.ndarray, z_star: np.ndarray, prm: dict[str, float]) -> np.ndarray:
+    r"""Per-beam mixture :math:`p^k` (Table 6.1, lines 5-6) of validated, broadcast arrays.
+
+    The same sum as ``z_hit * p_hit + z_short * p_short + z_max * p_max + z_rand * p_rand``,
+    arranged for speed (it is the inner loop of localization): terms that depend on the
+    reading alone (``p_max``, ``p_rand``, the exponential of ``p_short``) are computed
+    once per reading, not once per pose, and the ``p_short`` normalizer only where
+    ``z <= z*`` (elsewhere the term is 0).
+    """
+    zmax, sigma, lam = prm["max_range"], prm["sigma_hit"], prm["lambda_short"]
+    peak = prm["z_hit"] / (sigma * np.sqrt(2.0 * np.pi))
+    if not np.isfinite(1.0 / (sigma * np.sqrt(2.0 * np.pi))):
+        raise ValueError(
+            f"sigma_hit={sigma!r} is too small: the Gaussian density overflows float64"
+        )
+    # A reading shared by all poses is a stride-0 view: its own terms are computed once.
+    base = z[(0,) * (z.ndim - 1)] if z.ndim == 2 and z.strides[0] == 0 else z
+    flat = np.where(base == zmax, prm["z_max"], 0.0) + np.where(base < zmax, prm["z_rand"] / zmax, 0.0)
+    short_coef = prm["z_short"] * lam * np.exp(-lam * base)
+    u = z - z_star
+    u /= sigma
+    u *= u
+    u *= -0.5
+    p = np.exp(u, out=u)
+    p *= peak
+    p /= _hit_mass(z_star, zmax, sigma)
+    p += flat
+    # p_short: its normalizer 1 / (1 - e^{-lambda z*}) only where the reading is short.
+    short = z <= z_star
+    mass, ok = _short_mass(z_star[short], lam)
+    coef = np.broadcast_to(short_coef, z.shape)[short]
+    p[short] += np.where(ok, coef / np.where(ok, mass, 1.0), 0.0)
+    return p
+
+
 def _check_scan_shapes(z: np.ndarray, z_star: np.ndarray) -> None:
     if z.ndim not in (1, 2) or z_star.ndim not in (1, 2):
         raise ValueError(
@@ -495,13 +541,7 @@ def beam_range_finder_model(z, z_star, params, log=False):
         )
     _check_expected(z_star, zmax)
     z, z_star = np.broadcast_arrays(z, z_star)
-    # Table 6.1, lines 5-6, for every beam (and pose) at once.
-    p = (
-        prm["z_hit"] * p_hit(z, z_star, zmax, prm["sigma_hit"])
-        + prm["z_short"] * p_short(z, z_star, prm["lambda_short"])
-        + prm["z_max"] * p_max(z, zmax)
-        + prm["z_rand"] * p_rand(z, zmax)
-    )
+    p = _mixture(z, z_star, prm)  # Table 6.1, lines 5-6, for every beam (and pose) at once
     if not log:
         return _out(np.prod(p, axis=-1))  # line 7
     with np.errstate(divide="ignore"):

@@ -364,3 +364,16 @@ def test_alignment_recovers_a_transform_at_any_scale(scale):
     pose = np.array([0.7 * scale, -0.3 * scale, 2.0])
     est = align_points(pts, transform_points(pts, pose))
     np.testing.assert_allclose(est, pose, rtol=1e-9, atol=1e-12 * scale)
+
+
+def test_beam_model_hit_mass_skips_erf_only_where_it_is_exactly_one():
+    from scipy.special import erf
+
+    x = np.linspace(bm.ERF_IS_ONE, 40.0, 100_001)
+    assert np.all(erf(x) == 1.0)  # the premise of evaluating erf only near 0 and z_max
+    z_max = 3.0
+    z_star = np.linspace(0.0, z_max, 20_001)
+    for sigma in (1e-3, 0.05, 0.1, 1.0, 1e3, 1e30):
+        s = sigma * np.sqrt(2.0)
+        direct = 0.5 * (erf((z_max - z_star) / s) - erf(-z_star / s))
+        np.testing.assert_allclose(bm._hit_mass(z_star, z_max, sigma), direct, rtol=1e-15)
