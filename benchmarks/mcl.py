@@ -37,6 +37,8 @@ from solutions import mcl  # noqa: E402
 
 N_STEP, N_BAG, BEAMS = timing.sized(5000, 20), timing.sized(2000, 20), 60
 SUBSET = timing.sized(100, 5)
+SCALING = timing.sized((5_000, 20_000, 100_000), (20, 80, 400))
+BLOCK = mcl.LOOKUP_BLOCK
 PARAMS = {"alphas": (0.1, 0.1, 0.1, 0.1), "z_hit": 0.9, "z_rand": 0.1, "max_beams": BEAMS}
 
 
@@ -95,6 +97,27 @@ def map_size_rows(data, scan, prm, rng):
     return [(name, sizes[name], best[name, "cached"], best[name, "rebuilt"]) for name in sizes]
 
 
+def scaling_rows(data, scan, prm, rng):
+    """mcl_step CPU seconds per particle count, blocked lookup vs. whole (N, B) temporaries."""
+    rows = []
+    for n in SCALING:
+        particles = mcl.init_uniform(data.grid, n, rng)
+        weights = np.full(n, 1.0 / n)
+        field = mcl.likelihood_field(data.grid, 0.1, 2.0)
+
+        def step(block, particles=particles, weights=weights, field=field):
+            mcl.LOOKUP_BLOCK = block
+            mcl.mcl_step(particles, weights, data.odom[99], data.odom[100], scan, field, prm, rng)
+
+        best = timing.interleaved(
+            {"blocked": lambda: step(BLOCK), "whole": lambda: step(sys.maxsize)},
+            20 if n <= 20_000 else 5,
+        )
+        mcl.LOOKUP_BLOCK = BLOCK
+        rows.append((n, best["blocked"], best["whole"]))
+    return rows
+
+
 def main() -> None:
     pinned = timing.pin_to_one_core()
     data = mclplot.load_localization()
@@ -107,6 +130,7 @@ def main() -> None:
 
     rows = []
     size_rows = map_size_rows(data, scan, prm, rng)
+    scale_rows = scaling_rows(data, scan, prm, rng)
     t_model = timing.best_of(mcl.likelihood_field_model, 20, scan, particles, field, prm).cpu
     t_step = timing.best_of(
         mcl.mcl_step, 20, particles, weights, data.odom[99], data.odom[100], scan, field, prm, rng
@@ -152,7 +176,25 @@ def main() -> None:
         f"(target >= 10x); tracking error after 5 s <= "
         f"{run['position_error'][run['t'] >= 5].max():.3f} m"
     )
-    print(f"  mcl_step at {N_STEP} particles: {1 / t_step:.0f} Hz (target >= 200 Hz)")
+    print(f"  mcl_step at {N_STEP} particles: {1 / t_step:.0f} Hz (target >= 500 Hz, issue 29)")
+    print()
+    print(
+        f"mcl_step vs particles ({BEAMS} beams, CPU time, interleaved): likelihood lookup in "
+        f"blocks of {BLOCK} endpoints vs. whole (N, B) temporaries (the cost before)"
+    )
+    print(f"{'particles':>9} {'blocked [ms]':>13} {'rate [Hz]':>10} {'ms per 1000':>12} "
+          f"{'whole [ms]':>11} {'whole/blocked':>14}")
+    for n, blocked, whole in scale_rows:
+        print(
+            f"{n:>9d} {blocked * 1e3:>13.2f} {1 / blocked:>10.1f} {blocked / n * 1e6:>12.3f} "
+            f"{whole * 1e3:>11.2f} {whole / blocked:>13.2f}x"
+        )
+    first, last = scale_rows[0], scale_rows[-1]
+    print(
+        f"  cost per particle at {last[0]} / at {first[0]}: "
+        f"{(last[1] / last[0]) / (first[1] / first[0]):.2f} (linear: ~1; whole temporaries: "
+        f"{(last[2] / last[0]) / (first[2] / first[0]):.2f}); target >= 25 Hz at 100,000"
+    )
     print()
     print(f"per-step cost vs map size ({N_STEP} particles x {BEAMS} beams, CPU time, best of 20)")
     print(
