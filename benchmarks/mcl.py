@@ -18,6 +18,7 @@ Run: ``.venv/bin/python benchmarks/mcl.py``.
 
 from __future__ import annotations
 
+import functools
 import math
 import sys
 import time
@@ -30,6 +31,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from robolab import fieldsum  # noqa: E402
 from robolab.geometry import compose  # noqa: E402
 from robolab.maps import OccupancyGrid  # noqa: E402
 from robolab.plotting import mcl as mclplot  # noqa: E402
@@ -38,7 +40,7 @@ from solutions import mcl  # noqa: E402
 N_STEP, N_BAG, BEAMS = timing.sized(5000, 20), timing.sized(2000, 20), 60
 SUBSET = timing.sized(100, 5)
 SCALING = timing.sized((5_000, 20_000, 100_000), (20, 80, 400))
-BLOCK = mcl.LOOKUP_BLOCK
+BLOCK = fieldsum.BLOCK
 PARAMS = {"alphas": (0.1, 0.1, 0.1, 0.1), "z_hit": 0.9, "z_rand": 0.1, "max_beams": BEAMS}
 
 
@@ -98,23 +100,33 @@ def map_size_rows(data, scan, prm, rng):
 
 
 def scaling_rows(data, scan, prm, rng):
-    """mcl_step CPU seconds per particle count, blocked lookup vs. whole (N, B) temporaries."""
+    """mcl_step CPU seconds per particle count: compiled lookup, numpy in blocks, numpy whole."""
     rows = []
+    variants = {
+        "numba": ("numba", fieldsum.BLOCK),
+        "numpy": ("numpy", fieldsum.BLOCK),
+        "whole": ("numpy", sys.maxsize),  # whole (N, B) temporaries: the lookup before
+    }
     for n in SCALING:
         particles = mcl.init_uniform(data.grid, n, rng)
         weights = np.full(n, 1.0 / n)
         field = mcl.likelihood_field(data.grid, 0.1, 2.0)
 
-        def step(block, particles=particles, weights=weights, field=field):
-            mcl.LOOKUP_BLOCK = block
-            mcl.mcl_step(particles, weights, data.odom[99], data.odom[100], scan, field, prm, rng)
+        def step(variant, particles=particles, weights=weights, field=field):
+            backend, fieldsum.BLOCK = variants[variant]
+            mcl.table_sum = functools.partial(fieldsum.table_sum, backend=backend)
+            try:
+                mcl.mcl_step(
+                    particles, weights, data.odom[99], data.odom[100], scan, field, prm, rng
+                )
+            finally:
+                mcl.table_sum, fieldsum.BLOCK = fieldsum.table_sum, BLOCK
 
+        step("numba")  # compile (or load) the kernel outside the timing
         best = timing.interleaved(
-            {"blocked": lambda: step(BLOCK), "whole": lambda: step(sys.maxsize)},
-            20 if n <= 20_000 else 5,
+            {v: (lambda v=v: step(v)) for v in variants}, 20 if n <= 20_000 else 5
         )
-        mcl.LOOKUP_BLOCK = BLOCK
-        rows.append((n, best["blocked"], best["whole"]))
+        rows.append((n, best["numba"], best["numpy"], best["whole"]))
     return rows
 
 
@@ -179,21 +191,29 @@ def main() -> None:
     print(f"  mcl_step at {N_STEP} particles: {1 / t_step:.0f} Hz (target >= 500 Hz, issue 29)")
     print()
     print(
-        f"mcl_step vs particles ({BEAMS} beams, CPU time, interleaved): likelihood lookup in "
-        f"blocks of {BLOCK} endpoints vs. whole (N, B) temporaries (the cost before)"
+        f"mcl_step vs particles ({BEAMS} beams, CPU time, interleaved): likelihood lookup "
+        f"compiled (robolab.fieldsum, the default), in numpy blocks of {BLOCK} endpoints "
+        "(ROBOLAB_RAYCAST=numpy, the grading worker), numpy on whole (N, B) temporaries (before)"
     )
-    print(f"{'particles':>9} {'blocked [ms]':>13} {'rate [Hz]':>10} {'ms per 1000':>12} "
-          f"{'whole [ms]':>11} {'whole/blocked':>14}")
-    for n, blocked, whole in scale_rows:
+    print(
+        f"{'particles':>9} {'compiled [ms]':>14} {'rate [Hz]':>10} {'ms/1000':>8} "
+        f"{'numpy [ms]':>11} {'rate [Hz]':>10} {'whole [ms]':>11} {'whole/compiled':>15}"
+    )
+    for n, jit, blocked, whole in scale_rows:
         print(
-            f"{n:>9d} {blocked * 1e3:>13.2f} {1 / blocked:>10.1f} {blocked / n * 1e6:>12.3f} "
-            f"{whole * 1e3:>11.2f} {whole / blocked:>13.2f}x"
+            f"{n:>9d} {jit * 1e3:>14.2f} {1 / jit:>10.1f} {jit / n * 1e6:>8.3f} "
+            f"{blocked * 1e3:>11.2f} {1 / blocked:>10.1f} {whole * 1e3:>11.2f} "
+            f"{whole / jit:>14.2f}x"
         )
     first, last = scale_rows[0], scale_rows[-1]
+
+    def growth(i):
+        return (last[i] / last[0]) / (first[i] / first[0])
+
     print(
-        f"  cost per particle at {last[0]} / at {first[0]}: "
-        f"{(last[1] / last[0]) / (first[1] / first[0]):.2f} (linear: ~1; whole temporaries: "
-        f"{(last[2] / last[0]) / (first[2] / first[0]):.2f}); target >= 25 Hz at 100,000"
+        f"  cost per particle at {last[0]} / at {first[0]} (linear: ~1): compiled {growth(1):.2f}, "
+        f"numpy blocks {growth(2):.2f}, whole temporaries {growth(3):.2f}; "
+        f"targets >= 500 Hz at 5,000 and >= 25 Hz at 100,000"
     )
     print()
     print(f"per-step cost vs map size ({N_STEP} particles x {BEAMS} beams, CPU time, best of 20)")

@@ -385,3 +385,35 @@ def _slab(p, d, inv, inside, size):  # pragma: no cover - compiled
         return math.inf, -math.inf
     a0, a1 = -p * inv, (size - p) * inv
     return min(a0, a1), max(a0, a1)
+
+
+@njit(cache=True, nogil=True)
+def table_sum(flat, rows, cols, uv, c, s, qx, qy, out):  # pragma: no cover - compiled
+    """``out[i] = sum_k flat[row * cols + col]`` at the endpoints of :mod:`robolab.fieldsum`.
+
+    The float32 arithmetic of :func:`robolab.fieldsum.numpy_table_sum`, operation by
+    operation (same endpoints, same cells), without (N, B) temporaries: per pose, one
+    loop computes the B cell indices (branch-free, which LLVM vectorizes) and a second
+    sums the table there, beam by beam in order.
+    """
+    hi_u = np.float32(cols - 1)
+    hi_v = np.float32(rows - 1)
+    zero = np.float32(0.0)
+    n_beams = qx.shape[0]
+    index = np.empty(n_beams, np.int64)
+    for i in range(uv.shape[0]):
+        ci, si, u0, v0 = c[i], s[i], uv[i, 0], uv[i, 1]
+        for k in range(n_beams):
+            u = ci * qx[k]
+            u = u - si * qy[k]
+            u = u + u0
+            v = si * qx[k]
+            v = v + ci * qy[k]
+            v = v + v0
+            u = min(max(u, zero), hi_u)
+            v = min(max(v, zero), hi_v)
+            index[k] = np.int64(np.int32(v)) * cols + np.int64(np.int32(u))
+        acc = 0.0
+        for k in range(n_beams):
+            acc += flat[index[k]]
+        out[i] = acc

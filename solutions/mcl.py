@@ -26,6 +26,7 @@ import numpy as np
 from scipy import ndimage
 
 from robolab.geometry import angle_diff, compose, wrap_angle
+from robolab.fieldsum import table_sum
 from robolab.maps import OccupancyGrid
 from robolab.tablecache import cached_table, freeze
 from robolab.validation import LOG_FLOAT_MAX, as_array, as_poses, check_positive
@@ -47,8 +48,6 @@ __all__ = [
 
 #: AMCL's guard: below this translation (metres) the motion is an in-place rotation and rot1 = 0.
 IN_PLACE_TRANSLATION = 0.01
-#: likelihood_field_model looks up about this many beam endpoints at a time (cache-sized blocks).
-LOOKUP_BLOCK = 1 << 16
 
 #: Every ``params`` key used by this lab, with AMCL-like defaults (seed 000, listing 1.2).
 DEFAULT_PARAMS = {
@@ -408,50 +407,7 @@ def likelihood_field_model(scan, particles, field, params):
     r, a = ranges[use], angles[use]
     qx = (r * np.cos(a) / geometry.resolution).astype(np.float32)
     qy = (r * np.sin(a) / geometry.resolution).astype(np.float32)
-    return _field_lookup(table, uv, c, s, qx, qy)
-
-
-def _field_lookup(table, uv, c, s, qx, qy):
-    """Sum over beams of ``table`` at every particle's beam endpoints (cells), float64.
-
-    The endpoint of beam ``k`` from particle ``i`` is ``uv[i] + R(c[i], s[i]) (qx[k], qy[k])``
-    (column, row; the table's border holds the off-map score). Particles go through in
-    blocks of about ``LOOKUP_BLOCK`` endpoints whose temporaries stay in the core's
-    cache: whole (N, B) temporaries would spill to memory once N is large, and the
-    step's time would grow faster than N.
-    """
-    rows, cols = table.shape
-    flat = table.ravel()
-    n, b = uv.shape[0], qx.shape[0]
-    per = max(1, LOOKUP_BLOCK // max(b, 1))
-    out = np.empty(n)
-    u = np.empty((min(per, n), b), np.float32)
-    v = np.empty_like(u)
-    tmp = np.empty_like(u)
-    index = np.empty(u.shape, np.int32)
-    col = np.empty(u.shape, np.int32)
-    for i in range(0, n, per):
-        k = min(per, n - i)
-        cs, ss = c[i : i + k, None], s[i : i + k, None]
-        uu, vv, tt, ii, cc = u[:k], v[:k], tmp[:k], index[:k], col[:k]
-        np.multiply(cs, qx, out=uu)
-        np.multiply(ss, qy, out=tt)
-        uu -= tt
-        uu += uv[i : i + k, 0:1]
-        np.multiply(ss, qx, out=vv)
-        np.multiply(cs, qy, out=tt)
-        vv += tt
-        vv += uv[i : i + k, 1:2]
-        # clip into the border (which holds the off-map score); floor == truncation for u >= 0
-        np.clip(uu, 0, cols - 1, out=uu)
-        np.clip(vv, 0, rows - 1, out=vv)
-        np.copyto(ii, vv, casting="unsafe")
-        ii *= np.int32(cols)
-        np.copyto(cc, uu, casting="unsafe")
-        ii += cc
-        np.take(flat, ii, out=tt)
-        tt.sum(axis=1, dtype=np.float64, out=out[i : i + k])
-    return out
+    return table_sum(table, uv, c, s, qx, qy)  # compiled, or numpy in cache-sized blocks
 
 
 def normalize_log_weights(logw):
