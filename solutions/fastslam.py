@@ -340,14 +340,15 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
     # Work on copies of the observed landmarks' columns only; the full arrays are
     # copied once, at the end (gathered by the resampling indices when resampling).
     touched, cols = np.unique(obs[:, 2].astype(np.intp), return_inverse=True)
-    means, covs, seen = s["means"][:, touched], s["covs"][:, touched], s["seen"][:, touched]
+    # np.take on axis 1: several times faster than the equivalent fancy index [:, touched]
+    means, covs, seen = (np.take(s[key], touched, axis=1) for key in ("means", "covs", "seen"))
     ids = cols.reshape(-1)
     remaining = np.arange(len(obs))
     while remaining.size:  # rounds of distinct landmark ids (one round unless ids repeat)
         _, first = np.unique(ids[remaining], return_index=True)
         batch, remaining = remaining[first], np.delete(remaining, first)
         j, z = ids[batch], obs[batch, :2]
-        mu, sigma, known = means[:, j], covs[:, j], seen[:, j]  # (M, b, 2), (M, b, 2, 2), (M, b)
+        mu, sigma, known = (np.take(a, j, axis=1) for a in (means, covs, seen))  # (M, b, ...)
         new_mu, new_sigma, log_like = _ekf_update(mu, sigma, z[None], poses[:, None, :], qt)
         if not known.all():
             init_mu, init_sigma = _landmark_from_observation(z[None], poses[:, None, :], qt)
@@ -510,8 +511,11 @@ def _ekf_update(mu, sigma, zz, p, qt):
     e0 = zz[..., 0] - dist
     e1 = wrap_angle(zz[..., 1] - wrap_angle(np.arctan2(dy, dx) - p[..., 2]))
     safe = dist > 0
-    a = np.where(safe, dx / np.where(safe, dist, 1.0), 1.0)  # unit direction (x axis at 0)
-    b = np.where(safe, dy / np.where(safe, dist, 1.0), 0.0)
+    if safe.all():  # the usual case: no landmark estimate on top of its particle
+        a, b = dx / dist, dy / dist
+    else:
+        a = np.where(safe, dx / np.where(safe, dist, 1.0), 1.0)  # unit direction (x axis at 0)
+        b = np.where(safe, dy / np.where(safe, dist, 1.0), 0.0)
     rate = np.maximum(dist, np.sqrt(MIN_SQ_RANGE))  # the bearing's rate 1 / r, bounded
     c, d = -b / rate, a / rate
     s00, s01, s10, s11 = sigma[..., 0, 0], sigma[..., 0, 1], sigma[..., 1, 0], sigma[..., 1, 1]
