@@ -83,6 +83,8 @@ ANGLE_QUANTUM = 1e-9
 LOG_SPACE_BELOW = 1e-280
 #: erf(x) rounds to exactly 1.0 in float64 for x >= this (scipy: from 5.93 on).
 ERF_IS_ONE = 6.0
+#: beam_range_finder_model evaluates about this many beams at a time (temporaries of 64 KiB).
+BLOCK_BEAMS = 1 << 13
 #: pose_likelihood_map evaluates about this many beams at a time (bounds memory).
 CHUNK_BEAMS = 1 << 20
 
@@ -435,7 +437,7 @@ def _mixture(z: np.ndarray, z_star: np.ndarray, prm: dict[str, float]) -> np.nda
             f"sigma_hit={sigma!r} is too small: the Gaussian density overflows float64"
         )
     # A reading shared by all poses is a stride-0 view: its own terms are computed once.
-    base = z[(0,) * (z.ndim - 1)] if z.ndim == 2 and z.strides[0] == 0 else z
+    base = z[:1] if z.ndim == 2 and z.strides[0] == 0 else z
     flat = np.where(base == zmax, prm["z_max"], 0.0) + np.where(base < zmax, prm["z_rand"] / zmax, 0.0)
     short_coef = prm["z_short"] * lam * np.exp(-lam * base)
     u = z - z_star
@@ -541,9 +543,22 @@ def beam_range_finder_model(z, z_star, params, log=False):
         )
     _check_expected(z_star, zmax)
     z, z_star = np.broadcast_arrays(z, z_star)
-    p = _mixture(z, z_star, prm)  # Table 6.1, lines 5-6, for every beam (and pose) at once
+    if z.ndim == 1:
+        return _out(_scan_likelihood(z, z_star, prm, log))
+    # Blocks of poses: temporaries small enough to be reused from the heap, not mapped
+    # afresh (and page-faulted in) for every operation.
+    per = max(1, BLOCK_BEAMS // max(1, z.shape[1]))
+    starts = range(0, max(len(z), 1), per)  # one (empty) block for N = 0
+    return np.concatenate(
+        [_scan_likelihood(z[i : i + per], z_star[i : i + per], prm, log) for i in starts]
+    )
+
+
+def _scan_likelihood(z: np.ndarray, z_star: np.ndarray, prm: dict[str, float], log: bool):
+    """Table 6.1 on validated, broadcast arrays: the product (or sum of logs) over the last axis."""
+    p = _mixture(z, z_star, prm)  # lines 5-6, for every beam (and pose) at once
     if not log:
-        return _out(np.prod(p, axis=-1))  # line 7
+        return np.prod(p, axis=-1)  # line 7
     with np.errstate(divide="ignore"):
         log_p = np.log(p)
     # Beams whose mixture is (near) underflow -- only possible without z_rand, or far
@@ -551,7 +566,7 @@ def beam_range_finder_model(z, z_star, params, log=False):
     tiny = p < LOG_SPACE_BELOW
     if tiny.any():
         log_p[tiny] = _log_mixture(z[tiny], z_star[tiny], prm)
-    return _out(log_p.sum(axis=-1))
+    return log_p.sum(axis=-1)
 
 
 def pose_likelihood_map(scan, grid, beam_angles, params, positions, headings):

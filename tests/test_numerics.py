@@ -377,3 +377,27 @@ def test_beam_model_hit_mass_skips_erf_only_where_it_is_exactly_one():
         s = sigma * np.sqrt(2.0)
         direct = 0.5 * (erf((z_max - z_star) / s) - erf(-z_star / s))
         np.testing.assert_allclose(bm._hit_mass(z_star, z_max, sigma), direct, rtol=1e-15)
+
+
+@pytest.mark.parametrize("n", [0, 1, 3, 700])
+def test_beam_model_blocks_of_poses_agree_with_the_composed_densities(n, monkeypatch):
+    """N poses in blocks (also 0 poses, and blocks that do not divide N): the sum of logs of
+    the Table 6.1 mixture of the four densities, pose by pose."""
+    monkeypatch.setattr(bm, "BLOCK_BEAMS", 7 * 9)  # 7 poses of 9 beams per block
+    rng = np.random.default_rng(n)
+    params = {"z_hit": 0.8, "z_short": 0.1, "z_max": 0.05, "z_rand": 0.05,
+              "sigma_hit": 0.2, "lambda_short": 0.7, "max_range": 4.0}
+    z = np.where(rng.random(9) < 0.2, 4.0, rng.uniform(0, 4, 9))
+    z_star = rng.uniform(0, 4, (n, 9))
+    z_star[:, 0] = 0.0  # touching an obstacle: no p_short
+    got = bm.beam_range_finder_model(z, z_star, params, log=True)
+    zz = np.broadcast_to(z, z_star.shape)
+    mix = (
+        0.8 * bm.p_hit(zz, z_star, 4.0, 0.2) + 0.1 * bm.p_short(zz, z_star, 0.7)
+        + 0.05 * bm.p_max(zz, 4.0) + 0.05 * bm.p_rand(zz, 4.0)
+    )
+    assert got.shape == (n,)
+    np.testing.assert_allclose(got, np.log(mix).sum(axis=-1), rtol=1e-12)
+    np.testing.assert_allclose(
+        bm.beam_range_finder_model(z, z_star, params), np.prod(mix, axis=-1), rtol=1e-12
+    )
