@@ -72,6 +72,8 @@ SIGMA0 = 10000.0
 LOG_P0 = 0.0
 #: Smallest squared range used in h's Jacobian, m^2 (a landmark on the robot is undefined).
 MIN_SQ_RANGE = 1e-12
+#: fastslam_step updates about this many (particle, landmark) pairs at a time (64 KiB temporaries).
+EKF_BLOCK = 1 << 13
 INIT_MODES = ("prior", "first_observation")
 STATE_KEYS = ("poses", "means", "covs", "seen", "weights")
 
@@ -349,7 +351,7 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
         batch, remaining = remaining[first], np.delete(remaining, first)
         j, z = ids[batch], obs[batch, :2]
         mu, sigma, known = (np.take(a, j, axis=1) for a in (means, covs, seen))  # (M, b, ...)
-        new_mu, new_sigma, log_like = _ekf_update(mu, sigma, z[None], poses[:, None, :], qt)
+        new_mu, new_sigma, log_like = _blocked_ekf_update(mu, sigma, z[None], poses, qt)
         if not known.all():
             init_mu, init_sigma = _landmark_from_observation(z[None], poses[:, None, :], qt)
             new_mu = np.where(known[..., None], new_mu, init_mu)
@@ -548,6 +550,20 @@ def _ekf_update(mu, sigma, zz, p, qt):
         maha = e0 * (i00 * e0 + i01 * e1) + e1 * (i10 * e0 + i11 * e1)
     log_like = -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * logdet
     return new_mean, new_cov, log_like
+
+
+def _blocked_ekf_update(mu, sigma, zz, poses, qt):
+    """:func:`_ekf_update` of (M, b) landmarks in blocks of about ``EKF_BLOCK`` particle-landmark
+    pairs: its few dozen temporaries then come from the heap instead of fresh page-faulted maps."""
+    m, b = mu.shape[:2]
+    per = max(1, EKF_BLOCK // max(b, 1))
+    if per >= m:
+        return _ekf_update(mu, sigma, zz, poses[:, None, :], qt)
+    parts = [
+        _ekf_update(mu[i : i + per], sigma[i : i + per], zz, poses[i : i + per, None, :], qt)
+        for i in range(0, m, per)
+    ]
+    return tuple(np.concatenate(arrays) for arrays in zip(*parts))
 
 
 def _ess_fraction(resample) -> float | None:
