@@ -350,8 +350,11 @@ def optimize_graph(graph, max_iterations=20, tolerance=1e-5):
 
     Repeats :func:`gauss_newton_step` until the objective :math:`F` changes by
     at most ``tolerance`` relative to its previous value,
-    :math:`|F_{k-1} - F_k| \le \text{tolerance} \cdot F_{k-1}` (a graph whose
-    objective reaches 0 stops there), or ``max_iterations`` steps were taken.
+    :math:`|F_{k-1} - F_k| \le \text{tolerance} \cdot F_{k-1}`, or by at most
+    ``tolerance`` itself (F is a sum of squared Mahalanobis distances, without
+    unit: this stops a graph whose objective is near 0), or ``max_iterations``
+    steps were taken. GTSAM's Gauss-Newton stops the same way (its relative and
+    absolute error tolerances, both 1e-5 by default).
 
     Parameters
     ----------
@@ -379,7 +382,8 @@ def optimize_graph(graph, max_iterations=20, tolerance=1e-5):
         g, dx = gauss_newton_step(g)
         objective.append(_objective(g))
         steps.append(float(np.abs(dx).max(initial=0.0)))
-        converged = abs(objective[-2] - objective[-1]) <= tol * objective[-2]
+        change = abs(objective[-2] - objective[-1])
+        converged = change <= tol * objective[-2] or change <= tol  # relative, or absolute near 0
         if converged:
             break
     history = {"objective": np.array(objective), "step": np.array(steps), "converged": converged}
