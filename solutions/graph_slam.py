@@ -104,7 +104,7 @@ def pose_pose_error(xi, xj, z):
 def pose_pose_jacobians(xi, xj, z):
     r"""Jacobians :math:`A = \partial e_{ij} / \partial x_i` and :math:`B = \partial e_{ij} / \partial x_j`.
 
-    From the tutorial's eq. (30)-(31), with :math:`\partial R_i^T / \partial\theta_i`
+    As derived in Grisetti et al.'s tutorial, with :math:`\partial R_i^T / \partial\theta_i`
     the derivative of the transposed rotation:
 
     .. math::
@@ -223,8 +223,8 @@ def build_linear_system(graph):
     r"""The Gauss-Newton system :math:`H \Delta x = -b` of the graph at its current estimate.
 
     Linearising every error around the estimate, :math:`e(x + \Delta x) \approx e + J \Delta x`,
-    gives (tutorial eq. 13-15; Probabilistic Robotics Table 11.2 builds the same
-    information form)
+    gives (Grisetti et al.'s tutorial; Probabilistic Robotics Table 11.2,
+    GraphSLAM_linearize, builds the same information form)
 
     .. math::
 
@@ -275,7 +275,7 @@ def _f(x):
 
 
 def gauss_newton_step(graph):
-    r"""One Gauss-Newton iteration with the first pose held fixed (tutorial Algorithm 1).
+    r"""One Gauss-Newton iteration with the first pose held fixed (Probabilistic Robotics Table 11.4).
 
     Builds :math:`H, b` (:func:`build_linear_system`), removes the first pose's
     three rows and columns (the objective does not change when the whole graph
@@ -346,7 +346,7 @@ def _objective(graph):
 
 
 def optimize_graph(graph, max_iterations=20, tolerance=1e-5):
-    r"""Gauss-Newton to convergence (tutorial Algorithm 1, iterated).
+    r"""Gauss-Newton to convergence: :func:`gauss_newton_step` repeated (Probabilistic Robotics Table 11.5).
 
     Repeats :func:`gauss_newton_step` until the objective :math:`F` changes by
     at most ``tolerance`` relative to its previous value,
