@@ -11,7 +11,7 @@ from matplotlib.axes import Axes
 from matplotlib.collections import LineCollection
 
 from robolab.datasets.g2o import PoseGraph
-from robolab.plotting.core import _axes, legend_outside, new_axes
+from robolab.plotting.layout import _axes, legend_outside, new_axes
 
 __all__ = ["plot_pose_graph", "plot_sparsity", "plot_objective_history"]
 

@@ -3,7 +3,7 @@
 Every test calls only ``lab.<exercise>(...)`` with plain data (arrays and
 :class:`robolab.datasets.PoseGraph`) and compares results after
 ``np.asarray(..., dtype=float)``; a sparse H crosses the grader's process boundary
-as :class:`robolab.grading.codec.SparseMatrix` and is read with ``.toarray()``.
+as :class:`robolab.grading.wire.codec.SparseMatrix` and is read with ``.toarray()``.
 
 Oracles are written here, independently of the student's code: the error through
 ``robolab.geometry.relative`` (the grader's process only), central finite
@@ -360,7 +360,7 @@ def test_build_linear_system_returns_a_scipy_sparse_h(lab):
     """H is a scipy.sparse matrix with about as many entries as the edges' blocks, not dense."""
     import scipy.sparse
 
-    from robolab.grading.codec import SparseMatrix
+    from robolab.grading.wire.codec import SparseMatrix
 
     g = _simulated_graph(np.random.default_rng(7), n=40, loops=5)
     H, _ = lab.build_linear_system(g)
