@@ -450,9 +450,10 @@ def test_gauss_newton_step_reduces_the_objective_and_wraps_headings(lab):
 @requires("test_gauss_newton_step_solves_the_weighted_line_by_hand",
           "test_gauss_newton_step_of_one_edge_lands_on_the_measurement")
 def test_gauss_newton_step_refuses_a_pose_no_edge_constrains(lab):
-    """A third pose without any edge makes H singular: numpy.linalg.LinAlgError, not NaN poses."""
+    """A third pose without any edge makes H singular: an error (LinAlgError is a ValueError), not NaN poses."""
     g = PoseGraph(np.zeros((3, 3)), [[0, 1]], [[1.0, 0.0, 0.0]], [np.eye(3)])
-    with pytest.raises(np.linalg.LinAlgError):
+    # numpy.linalg.LinAlgError crosses the grader's boundary as the builtin it derives from
+    with pytest.raises(ValueError):
         lab.gauss_newton_step(g)
 
 
