@@ -44,18 +44,23 @@ def loop_linear_system(graph):
     n = graph.state_size
     rows, cols, vals = [], [], []
     b = np.zeros(n)
-    for (i, j), z, omega in zip(graph.edges, graph.measurements, graph.information):
+    for (i, j), z, omega in zip(graph.edges, graph.measurements, graph.information, strict=True):
         xi, xj = graph.poses[i], graph.poses[j]
         e = gs.pose_pose_error(xi, xj, z)
         A, B = gs.pose_pose_jacobians(xi, xj, z)
         for (r, Jr), (c, Jc) in ((a, p) for a in ((i, A), (j, B)) for p in ((i, A), (j, B))):
             block = Jr.T @ omega @ Jc
-            rr, cc = np.meshgrid(np.arange(3 * r, 3 * r + 3), np.arange(3 * c, 3 * c + 3), indexing="ij")
-            rows.append(rr.ravel()); cols.append(cc.ravel()); vals.append(block.ravel())
-        b[3 * i:3 * i + 3] += A.T @ omega @ e
-        b[3 * j:3 * j + 3] += B.T @ omega @ e
-    H = scipy.sparse.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                                shape=(n, n)).tocsr()
+            rr, cc = np.meshgrid(
+                np.arange(3 * r, 3 * r + 3), np.arange(3 * c, 3 * c + 3), indexing="ij"
+            )
+            rows.append(rr.ravel())
+            cols.append(cc.ravel())
+            vals.append(block.ravel())
+        b[3 * i : 3 * i + 3] += A.T @ omega @ e
+        b[3 * j : 3 * j + 3] += B.T @ omega @ e
+    H = scipy.sparse.coo_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n, n)
+    ).tocsr()
     return H, b
 
 
@@ -75,12 +80,17 @@ def gtsam_optimize(path):
 
     factors, initial = gtsam.readG2o(str(path), False)
     first = min(initial.keys())
-    factors.add(gtsam.PriorFactorPose2(first, initial.atPose2(first),
-                                       gtsam.noiseModel.Diagonal.Sigmas(np.full(3, 1e-6))))
+    factors.add(
+        gtsam.PriorFactorPose2(
+            first, initial.atPose2(first), gtsam.noiseModel.Diagonal.Sigmas(np.full(3, 1e-6))
+        )
+    )
     optimizer = gtsam.GaussNewtonOptimizer(factors, initial, gtsam.GaussNewtonParams())
     result = optimizer.optimize()
     keys = sorted(result.keys())
-    poses = np.array([[result.atPose2(k).x(), result.atPose2(k).y(), result.atPose2(k).theta()] for k in keys])
+    poses = np.array(
+        [[result.atPose2(k).x(), result.atPose2(k).y(), result.atPose2(k).theta()] for k in keys]
+    )
     return poses, optimizer.iterations()
 
 
@@ -91,10 +101,14 @@ def main() -> None:
     print(f"graph SLAM benchmark, {timing.pin_to_one_core()}, {timing.load_average()}")
     folder = locate("graph_slam")
     if folder is None:
-        print("the graph_slam data set is not on disk (robolab.datasets.fetch('graph_slam')): nothing to run")
+        print(
+            "the graph_slam data set is not on disk "
+            "(robolab.datasets.fetch('graph_slam')): nothing to run"
+        )
         return
     try:
         import gtsam  # noqa: F401
+
         have_gtsam = True
     except ImportError:
         have_gtsam = False
@@ -102,24 +116,39 @@ def main() -> None:
     for name, label in GRAPHS.items():
         path = folder / name
         graph = read_g2o(path)
-        contenders = {"reference": lambda: gs.optimize_graph(graph), "per-edge loop": lambda: loop_optimize(graph)}
+        contenders = {
+            "reference": lambda graph=graph: gs.optimize_graph(graph),
+            "per-edge loop": lambda graph=graph: loop_optimize(graph),
+        }
         if have_gtsam:
-            contenders["GTSAM"] = lambda: gtsam_optimize(path)
+            contenders["GTSAM"] = lambda path=path: gtsam_optimize(path)
         best = timing.interleaved(contenders, args.repeats)
         out, history = gs.optimize_graph(graph)
         _, loop_history = loop_optimize(graph)
-        print(f"\n{label} ({graph.n_poses} poses, {len(graph.edges)} edges), F of the guess {graph_objective(graph):.4g}")
-        print(f"  reference      F {graph_objective(out):.6g} in {len(history['step'])} iterations, "
-              f"{best['reference']:.3f} s CPU")
-        print(f"  per-edge loop  F {loop_history['objective'][-1]:.6g} in {len(loop_history['step'])} iterations, "
-              f"{best['per-edge loop']:.3f} s CPU: the reference is {best['per-edge loop'] / best['reference']:.1f}x faster")
+        print(
+            f"\n{label} ({graph.n_poses} poses, {len(graph.edges)} edges), "
+            f"F of the guess {graph_objective(graph):.4g}"
+        )
+        print(
+            f"  reference      F {graph_objective(out):.6g} in {len(history['step'])} iterations, "
+            f"{best['reference']:.3f} s CPU"
+        )
+        print(
+            f"  per-edge loop  F {loop_history['objective'][-1]:.6g} "
+            f"in {len(loop_history['step'])} iterations, "
+            f"{best['per-edge loop']:.3f} s CPU: the reference is "
+            f"{best['per-edge loop'] / best['reference']:.1f}x faster"
+        )
         if have_gtsam:
             poses, iterations = gtsam_optimize(path)
             f_gtsam = graph_objective(graph.with_estimate(poses))
             ratio = best["reference"] / best["GTSAM"]
-            print(f"  GTSAM 4.3      F {f_gtsam:.6g} in {iterations} iterations, {best['GTSAM']:.3f} s CPU: "
-                  f"reference / GTSAM = {ratio:.2f}x time (target <= {TARGET_RATIO:g}x), "
-                  f"objective {100 * (graph_objective(out) / f_gtsam - 1):+.4f} %")
+            print(
+                f"  GTSAM 4.3      F {f_gtsam:.6g} in {iterations} iterations, "
+                f"{best['GTSAM']:.3f} s CPU: "
+                f"reference / GTSAM = {ratio:.2f}x time (target <= {TARGET_RATIO:g}x), "
+                f"objective {100 * (graph_objective(out) / f_gtsam - 1):+.4f} %"
+            )
     print(f"\nfinished {time.strftime('%Y-%m-%d %H:%M')}, {timing.load_average()}")
 
 

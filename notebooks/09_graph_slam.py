@@ -145,14 +145,15 @@ checks.check_pose_pose_error(pose_pose_error)
 
 # %% tags=["exercise"]
 def pose_pose_jacobians(xi, xj, z):
-    r"""Jacobians :math:`A = \partial e_{ij} / \partial x_i` and :math:`B = \partial e_{ij} / \partial x_j`.
+    r"""Jacobians :math:`A = \partial e/\partial x_i`, :math:`B = \partial e/\partial x_j`.
 
     As derived in Grisetti et al.'s tutorial, with :math:`\partial R_i^T / \partial\theta_i`
     the derivative of the transposed rotation:
 
     .. math::
 
-        A = \begin{pmatrix} -R_z^T R_i^T & R_z^T \frac{\partial R_i^T}{\partial \theta_i} (t_j - t_i) \\
+        A = \begin{pmatrix} -R_z^T R_i^T &
+                            R_z^T \frac{\partial R_i^T}{\partial \theta_i} (t_j - t_i) \\
                             0 \;\; 0 & -1 \end{pmatrix}, \qquad
         B = \begin{pmatrix} R_z^T R_i^T & 0 \\ 0 \;\; 0 & 1 \end{pmatrix}.
 
@@ -226,11 +227,12 @@ checks.check_pose_landmark_error(pose_landmark_error)
 
 # %% tags=["exercise"]
 def pose_landmark_jacobians(x, landmark, z):
-    r"""Jacobians :math:`A = \partial e_{ik} / \partial x_i` (2 x 3) and :math:`B = \partial e_{ik} / \partial l_k` (2 x 2).
+    r"""Jacobians :math:`A = \partial e/\partial x_i` (2 x 3), :math:`B = \partial e/\partial l_k` (2 x 2).
 
     .. math::
 
-        A = \begin{pmatrix} -R_i^T & \frac{\partial R_i^T}{\partial \theta_i} (l_k - t_i) \end{pmatrix},
+        A = \begin{pmatrix} -R_i^T &
+                            \frac{\partial R_i^T}{\partial \theta_i} (l_k - t_i) \end{pmatrix},
         \qquad B = R_i^T.
 
     The measurement ``z`` does not enter (the error is linear in it) but is
@@ -333,7 +335,7 @@ print("smallest eigenvalue without the first pose's rows and columns:",
 
 # %% tags=["exercise"]
 def gauss_newton_step(graph):
-    r"""One Gauss-Newton iteration with the first pose held fixed (Probabilistic Robotics Table 11.4).
+    r"""One Gauss-Newton iteration, the first pose held fixed (Probabilistic Robotics Table 11.4).
 
     Builds :math:`H, b` (:func:`build_linear_system`), removes the first pose's
     three rows and columns (the objective does not change when the whole graph
@@ -373,7 +375,7 @@ checks.check_gauss_newton_step(gauss_newton_step)
 
 # %% tags=["exercise"]
 def optimize_graph(graph, max_iterations=20, tolerance=1e-5):
-    r"""Gauss-Newton to convergence: :func:`gauss_newton_step` repeated (Probabilistic Robotics Table 11.5).
+    r"""Gauss-Newton to convergence, :func:`gauss_newton_step` repeated (Prob. Robotics Table 11.5).
 
     Repeats :func:`gauss_newton_step` until the objective :math:`F` changes by
     at most ``tolerance`` relative to its previous value,

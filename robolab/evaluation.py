@@ -33,8 +33,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from robolab.geometry import angle_diff, compose, relative, transform_points
 from robolab.datasets.g2o import PoseGraph
+from robolab.geometry import angle_diff, compose, relative, transform_points
 from robolab.maps import OccupancyGrid
 from robolab.validation import as_array, check_count, check_positive
 

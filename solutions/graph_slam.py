@@ -102,14 +102,15 @@ def pose_pose_error(xi, xj, z):
 
 
 def pose_pose_jacobians(xi, xj, z):
-    r"""Jacobians :math:`A = \partial e_{ij} / \partial x_i` and :math:`B = \partial e_{ij} / \partial x_j`.
+    r"""Jacobians :math:`A = \partial e/\partial x_i`, :math:`B = \partial e/\partial x_j`.
 
     As derived in Grisetti et al.'s tutorial, with :math:`\partial R_i^T / \partial\theta_i`
     the derivative of the transposed rotation:
 
     .. math::
 
-        A = \begin{pmatrix} -R_z^T R_i^T & R_z^T \frac{\partial R_i^T}{\partial \theta_i} (t_j - t_i) \\
+        A = \begin{pmatrix} -R_z^T R_i^T &
+                            R_z^T \frac{\partial R_i^T}{\partial \theta_i} (t_j - t_i) \\
                             0 \;\; 0 & -1 \end{pmatrix}, \qquad
         B = \begin{pmatrix} R_z^T R_i^T & 0 \\ 0 \;\; 0 & 1 \end{pmatrix}.
 
@@ -131,7 +132,8 @@ def pose_pose_jacobians(xi, xj, z):
     gx, gy = local[..., 1], -local[..., 0]
     zero, one = np.zeros_like(c), np.ones_like(c)
     B = np.stack(
-        [np.stack([c, s, zero], -1), np.stack([-s, c, zero], -1), np.stack([zero, zero, one], -1)], -2
+        [np.stack([c, s, zero], -1), np.stack([-s, c, zero], -1), np.stack([zero, zero, one], -1)],
+        -2,
     )
     A = -B
     A[..., 0, 2] = cz * gx + sz * gy
@@ -165,11 +167,12 @@ def pose_landmark_error(x, landmark, z):
 
 
 def pose_landmark_jacobians(x, landmark, z):
-    r"""Jacobians :math:`A = \partial e_{ik} / \partial x_i` (2 x 3) and :math:`B = \partial e_{ik} / \partial l_k` (2 x 2).
+    r"""Jacobians :math:`A = \partial e/\partial x_i` (2 x 3), :math:`B = \partial e/\partial l` (2 x 2).
 
     .. math::
 
-        A = \begin{pmatrix} -R_i^T & \frac{\partial R_i^T}{\partial \theta_i} (l_k - t_i) \end{pmatrix},
+        A = \begin{pmatrix} -R_i^T &
+                            \frac{\partial R_i^T}{\partial \theta_i} (l_k - t_i) \end{pmatrix},
         \qquad B = R_i^T.
 
     The measurement ``z`` does not enter (the error is linear in it) but is
@@ -261,7 +264,9 @@ def build_linear_system(graph):
         x, lm = g.poses[i], g.landmarks[k]
         e = pose_landmark_error(x, lm, g.landmark_measurements)
         A, B = pose_landmark_jacobians(x, lm, g.landmark_measurements)
-        parts.append(_blocks(3 * i, 3, n_p3 + 2 * k, 2, _f(A), _f(B), g.landmark_information, _f(e)))
+        parts.append(
+            _blocks(3 * i, 3, n_p3 + 2 * k, 2, _f(A), _f(B), g.landmark_information, _f(e))
+        )
     if not parts:
         return scipy.sparse.csr_matrix((n, n)), np.zeros(n)
     rows, cols, vals, bidx, bval = (np.concatenate(p) for p in zip(*parts, strict=True))
@@ -275,7 +280,7 @@ def _f(x):
 
 
 def gauss_newton_step(graph):
-    r"""One Gauss-Newton iteration with the first pose held fixed (Probabilistic Robotics Table 11.4).
+    r"""One Gauss-Newton iteration, the first pose held fixed (Probabilistic Robotics Table 11.4).
 
     Builds :math:`H, b` (:func:`build_linear_system`), removes the first pose's
     three rows and columns (the objective does not change when the whole graph
@@ -313,7 +318,9 @@ def gauss_newton_step(graph):
             # ordering and pivots on the diagonal keep the factor sparse (3x faster
             # on the Intel graph than SuperLU's default partial pivoting)
             lu = scipy.sparse.linalg.splu(
-                free, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                free,
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=0.0,
                 options={"SymmetricMode": True},
             )
             dx[3:] = lu.solve(-b[3:])
@@ -338,15 +345,19 @@ def _objective(graph):
         e = _f(pose_pose_error(g.poses[g.edges[:, 0]], g.poses[g.edges[:, 1]], g.measurements))
         total += float(np.einsum("ei,eij,ej->", e, g.information, e))
     if len(g.landmark_edges):
-        e = _f(pose_landmark_error(
-            g.poses[g.landmark_edges[:, 0]], g.landmarks[g.landmark_edges[:, 1]], g.landmark_measurements
-        ))
+        e = _f(
+            pose_landmark_error(
+                g.poses[g.landmark_edges[:, 0]],
+                g.landmarks[g.landmark_edges[:, 1]],
+                g.landmark_measurements,
+            )
+        )
         total += float(np.einsum("ei,eij,ej->", e, g.landmark_information, e))
     return total
 
 
 def optimize_graph(graph, max_iterations=20, tolerance=1e-5):
-    r"""Gauss-Newton to convergence: :func:`gauss_newton_step` repeated (Probabilistic Robotics Table 11.5).
+    r"""Gauss-Newton to convergence, :func:`gauss_newton_step` repeated (Prob. Robotics Table 11.5).
 
     Repeats :func:`gauss_newton_step` until the objective :math:`F` changes by
     at most ``tolerance`` relative to its previous value,

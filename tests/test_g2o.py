@@ -16,7 +16,9 @@ from robolab.evaluation import graph_objective
 from robolab.geometry import compose, relative, transform_points
 
 GRAPHS = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "graph_slam"
-needs_graphs = pytest.mark.skipif(not GRAPHS.is_dir(), reason="../shared/data/graph_slam not present")
+needs_graphs = pytest.mark.skipif(
+    not GRAPHS.is_dir(), reason="../shared/data/graph_slam not present"
+)
 
 SMALL = """\
 # ids neither 0..N-1 nor in order; a landmark between the poses
@@ -69,8 +71,18 @@ def test_write_then_read_gives_back_every_array(tmp_path):
         fixed=[1],
     )
     back = read_g2o(write_g2o(g, tmp_path / "out.g2o"))
-    for name in ("poses", "edges", "measurements", "landmark_edges", "landmark_measurements",
-                 "landmark_information", "landmarks", "fixed", "pose_ids", "landmark_ids"):
+    for name in (
+        "poses",
+        "edges",
+        "measurements",
+        "landmark_edges",
+        "landmark_measurements",
+        "landmark_information",
+        "landmarks",
+        "fixed",
+        "pose_ids",
+        "landmark_ids",
+    ):
         np.testing.assert_array_equal(getattr(back, name), getattr(g, name), err_msg=name)
     # the information is written as its upper triangle: exact up to the symmetrisation
     np.testing.assert_allclose(back.information, g.information, rtol=1e-15)
@@ -126,8 +138,14 @@ def test_fix_lines_name_the_gauge(tmp_path):
         ({"edges": [[0, 2]]}, "edges[0] = [0, 2] is out of range"),
         ({"edges": [[0, 1.5]]}, "integer row indices"),
         ({"measurements": np.zeros((2, 3))}, "measurements must have shape (1, 3)"),
-        ({"information": [np.diag([1.0, -1.0, 1.0])]}, "information[0] is not positive semi-definite"),
-        ({"information": [[[1.0, 2.0, 0], [0, 1, 0], [0, 0, 1]]]}, "information[0] is not symmetric"),
+        (
+            {"information": [np.diag([1.0, -1.0, 1.0])]},
+            "information[0] is not positive semi-definite",
+        ),
+        (
+            {"information": [[[1.0, 2.0, 0], [0, 1, 0], [0, 0, 1]]]},
+            "information[0] is not symmetric",
+        ),
         ({"poses": [[0, 0, np.inf], [0, 0, 0]]}, "poses must be finite"),
         ({"pose_ids": [1, 1]}, "pose_ids must be unique"),
         ({"fixed": [5]}, "fixed must hold rows of poses"),
@@ -135,8 +153,12 @@ def test_fix_lines_name_the_gauge(tmp_path):
 )
 def test_a_pose_graph_checks_its_arrays(kwargs, message):
     """PoseGraph refuses inconsistent arrays with a message naming the field."""
-    base = {"poses": np.zeros((2, 3)), "edges": [[0, 1]], "measurements": [[1.0, 0, 0]],
-            "information": [np.eye(3)]}
+    base = {
+        "poses": np.zeros((2, 3)),
+        "edges": [[0, 1]],
+        "measurements": [[1.0, 0, 0]],
+        "information": [np.eye(3)],
+    }
     with pytest.raises(G2oError) as info:
         PoseGraph(**(base | kwargs))
     assert message in str(info.value), str(info.value)
@@ -167,7 +189,9 @@ def _random_graph(rng, n=6, n_lm=3, n_edges=10, n_lm_edges=8):
         measurements=np.column_stack([rng.normal(0, 2, (n_edges, 2)), rng.uniform(-3, 3, n_edges)]),
         information=a @ np.swapaxes(a, 1, 2),
         landmarks=rng.normal(0, 3, (n_lm, 2)),
-        landmark_edges=np.column_stack([rng.integers(0, n, n_lm_edges), rng.integers(0, n_lm, n_lm_edges)]),
+        landmark_edges=np.column_stack(
+            [rng.integers(0, n, n_lm_edges), rng.integers(0, n_lm, n_lm_edges)]
+        ),
         landmark_measurements=rng.normal(0, 2, (n_lm_edges, 2)),
         landmark_information=b @ np.swapaxes(b, 1, 2),
     )
@@ -179,15 +203,30 @@ def test_the_objective_is_zero_on_measurements_that_agree_and_a_hand_value_other
     z = relative(x0, x1)  # exactly right
     zl = transform_points(lm[None], relative(x1, np.zeros(3)))[0]  # lm in the frame of x1
     info = np.diag([2.0, 3.0, 5.0])
-    g = PoseGraph(np.stack([x0, x1]), [[0, 1]], [z], [info], landmarks=[lm],
-                  landmark_edges=[[1, 0]], landmark_measurements=[zl], landmark_information=[np.eye(2)])
+    g = PoseGraph(
+        np.stack([x0, x1]),
+        [[0, 1]],
+        [z],
+        [info],
+        landmarks=[lm],
+        landmark_edges=[[1, 0]],
+        landmark_measurements=[zl],
+        landmark_information=[np.eye(2)],
+    )
     assert graph_objective(g) == pytest.approx(0.0, abs=1e-20)
     # the measurement says pose 1 is 0.1 m further along x and 0.2 rad more turned:
     # e = t2v(Z^-1 X0^-1 X1) = t2v(Z^-1 Z') with Z' = Z (+) (-0.1, 0, -0.2) in Z's frame
     wrong = compose(z, [0.1, 0.0, 0.2])
-    g2 = PoseGraph(g.poses, [[0, 1]], [wrong], [info], landmarks=[lm + [0.0, 0.0]],
-                   landmark_edges=[[1, 0]], landmark_measurements=[zl + [0.3, -0.4]],
-                   landmark_information=[np.diag([1.0, 2.0])])
+    g2 = PoseGraph(
+        g.poses,
+        [[0, 1]],
+        [wrong],
+        [info],
+        landmarks=[lm + [0.0, 0.0]],
+        landmark_edges=[[1, 0]],
+        landmark_measurements=[zl + [0.3, -0.4]],
+        landmark_information=[np.diag([1.0, 2.0])],
+    )
     e = relative(wrong, z)
     expected = e @ info @ e + (0.3**2 * 1.0 + 0.4**2 * 2.0)
     assert graph_objective(g2) == pytest.approx(expected, rel=1e-12)

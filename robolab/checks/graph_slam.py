@@ -48,12 +48,23 @@ def _line_graph():
 def check_pose_pose_error(pose_pose_error) -> None:
     """Pose j exactly where the measurement says: zero error; 0.1 m further along: e_x = 0.1."""
     xi, z = np.array([1.0, 2.0, np.pi / 2]), np.array([1.0, 0.0, 0.0])
-    expect_close("error of a measurement that agrees", pose_pose_error(xi, [1.0, 3.0, np.pi / 2], z),
-                 [0.0, 0.0, 0.0], atol=1e-12)
-    expect_close("pose j 0.1 m further ahead", pose_pose_error(xi, [1.0, 3.1, np.pi / 2], z),
-                 [0.1, 0.0, 0.0], atol=1e-12)
-    got = expect_shape("errors of 4 edges at once",
-                       pose_pose_error(np.zeros((4, 3)), np.zeros((4, 3)), np.zeros((4, 3))), (4, 3))
+    expect_close(
+        "error of a measurement that agrees",
+        pose_pose_error(xi, [1.0, 3.0, np.pi / 2], z),
+        [0.0, 0.0, 0.0],
+        atol=1e-12,
+    )
+    expect_close(
+        "pose j 0.1 m further ahead",
+        pose_pose_error(xi, [1.0, 3.1, np.pi / 2], z),
+        [0.1, 0.0, 0.0],
+        atol=1e-12,
+    )
+    got = expect_shape(
+        "errors of 4 edges at once",
+        pose_pose_error(np.zeros((4, 3)), np.zeros((4, 3)), np.zeros((4, 3))),
+        (4, 3),
+    )
     expect_close("errors of 4 edges at once", got, np.zeros((4, 3)))
 
 
@@ -84,19 +95,34 @@ def check_pose_pose_jacobians(pose_pose_jacobians) -> None:
     """A and B against central finite differences of the error at one edge."""
     xi, xj, z = np.array([1.0, -0.5, 0.7]), np.array([2.5, 1.0, -0.4]), np.array([1.2, 0.9, -1.0])
     A, B = pose_pose_jacobians(xi, xj, z)
-    _compare_jacobian("A = de/dx_i", A, _numeric_jacobian(lambda v: _pose_pose_error(v, xj, z), xi), (3, 3))
-    _compare_jacobian("B = de/dx_j", B, _numeric_jacobian(lambda v: _pose_pose_error(xi, v, z), xj), (3, 3))
+    _compare_jacobian(
+        "A = de/dx_i", A, _numeric_jacobian(lambda v: _pose_pose_error(v, xj, z), xi), (3, 3)
+    )
+    _compare_jacobian(
+        "B = de/dx_j", B, _numeric_jacobian(lambda v: _pose_pose_error(xi, v, z), xj), (3, 3)
+    )
 
 
 @check
 def check_pose_landmark_error(pose_landmark_error) -> None:
-    """A landmark 2 m ahead of a pose facing +y sits at (0, 2) in the world seen from (0, 0, pi/2)."""
-    expect_close("landmark exactly where measured",
-                 pose_landmark_error([0.0, 0.0, np.pi / 2], [0.0, 2.0], [2.0, 0.0]), [0.0, 0.0], atol=1e-12)
-    expect_close("landmark 0.5 m to the left of where measured",
-                 pose_landmark_error([0.0, 0.0, np.pi / 2], [-0.5, 2.0], [2.0, 0.0]), [0.0, 0.5], atol=1e-12)
-    expect_shape("errors of 5 edges at once",
-                 pose_landmark_error(np.zeros((5, 3)), np.ones((5, 2)), np.zeros((5, 2))), (5, 2))
+    """Seen from (0, 0, pi/2), the landmark at (0, 2) in the world is 2 m straight ahead."""
+    expect_close(
+        "landmark exactly where measured",
+        pose_landmark_error([0.0, 0.0, np.pi / 2], [0.0, 2.0], [2.0, 0.0]),
+        [0.0, 0.0],
+        atol=1e-12,
+    )
+    expect_close(
+        "landmark 0.5 m to the left of where measured",
+        pose_landmark_error([0.0, 0.0, np.pi / 2], [-0.5, 2.0], [2.0, 0.0]),
+        [0.0, 0.5],
+        atol=1e-12,
+    )
+    expect_shape(
+        "errors of 5 edges at once",
+        pose_landmark_error(np.zeros((5, 3)), np.ones((5, 2)), np.zeros((5, 2))),
+        (5, 2),
+    )
 
 
 @check
@@ -104,8 +130,12 @@ def check_pose_landmark_jacobians(pose_landmark_jacobians) -> None:
     """A (2 x 3) and B (2 x 2) against central finite differences of the landmark error."""
     x, lm, z = np.array([1.0, -0.5, 0.7]), np.array([-2.0, 3.0]), np.array([1.0, 2.0])
     A, B = pose_landmark_jacobians(x, lm, z)
-    _compare_jacobian("A = de/dx_i", A, _numeric_jacobian(lambda v: _pose_landmark_error(v, lm, z), x), (2, 3))
-    _compare_jacobian("B = de/dl_k", B, _numeric_jacobian(lambda v: _pose_landmark_error(x, v, z), lm), (2, 2))
+    _compare_jacobian(
+        "A = de/dx_i", A, _numeric_jacobian(lambda v: _pose_landmark_error(v, lm, z), x), (2, 3)
+    )
+    _compare_jacobian(
+        "B = de/dl_k", B, _numeric_jacobian(lambda v: _pose_landmark_error(x, v, z), lm), (2, 2)
+    )
 
 
 @check
@@ -138,7 +168,7 @@ def check_gauss_newton_step(gauss_newton_step) -> None:
 
 @check
 def check_optimize_graph(optimize_graph) -> None:
-    """The three-pose line converges, its objective never rises, and the history has one more entry."""
+    """The three-pose line converges; its objective never rises; F before the first step is kept."""
     out, history = optimize_graph(_line_graph())
     f = np.asarray(history["objective"], dtype=float)
     if f.ndim != 1 or len(f) < 2:

@@ -98,10 +98,16 @@ class PoseGraph:
         set_(self, "information", _information("information", self.information, len(self.edges), 3))
         set_(self, "landmark_edges", _index("landmark_edges", self.landmark_edges, n, nl))
         f = len(self.landmark_edges)
-        set_(self, "landmark_measurements",
-             _float("landmark_measurements", self.landmark_measurements, (f, 2)))
-        set_(self, "landmark_information",
-             _information("landmark_information", self.landmark_information, f, 2))
+        set_(
+            self,
+            "landmark_measurements",
+            _float("landmark_measurements", self.landmark_measurements, (f, 2)),
+        )
+        set_(
+            self,
+            "landmark_information",
+            _information("landmark_information", self.landmark_information, f, 2),
+        )
         pose_ids = np.arange(n) if self.pose_ids is None else self.pose_ids
         landmark_ids = np.arange(n, n + nl) if self.landmark_ids is None else self.landmark_ids
         set_(self, "pose_ids", _ids("pose_ids", pose_ids, n))
@@ -144,7 +150,9 @@ class PoseGraph:
 
     def copy(self) -> PoseGraph:
         """A deep copy: no array shared with this graph."""
-        return dataclasses.replace(self, **{f.name: np.array(getattr(self, f.name)) for f in dataclasses.fields(self)})
+        return dataclasses.replace(
+            self, **{f.name: np.array(getattr(self, f.name)) for f in dataclasses.fields(self)}
+        )
 
 
 def _float(name, value, shape) -> np.ndarray:
@@ -154,7 +162,9 @@ def _float(name, value, shape) -> np.ndarray:
         raise G2oError(f"{name} must be a numeric array, got {type(value).__name__}") from exc
     if arr.size == 0 and shape[0] in (None, 0):
         arr = arr.reshape((0,) + tuple(shape[1:]))
-    if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+    if arr.ndim != len(shape) or any(
+        s is not None and s != a for s, a in zip(shape, arr.shape, strict=True)
+    ):
         want = "(" + ", ".join("N" if s is None else str(s) for s in shape) + ")"
         raise G2oError(f"{name} must have shape {want}, got {arr.shape}")
     if not np.all(np.isfinite(arr)):
@@ -175,14 +185,13 @@ def _index(name, value, n_from, n_to) -> np.ndarray:
     if bad.any():
         k = int(np.flatnonzero(bad)[0])
         raise G2oError(
-            f"{name}[{k}] = {arr[k].tolist()} is out of range "
-            f"(rows [0, {n_from}) and [0, {n_to}))"
+            f"{name}[{k}] = {arr[k].tolist()} is out of range (rows [0, {n_from}) and [0, {n_to}))"
         )
     return arr
 
 
 def _bad_information(arr: np.ndarray) -> tuple[int, str] | None:
-    """The first matrix of ``arr`` (E, d, d) that is not symmetric PSD, and why; None when all are."""
+    """The first matrix of ``arr`` (E, d, d) not symmetric PSD, and why; None when all are."""
     if not len(arr):
         return None
     scale = np.maximum(np.abs(arr).max(axis=(1, 2)), 1.0)
@@ -194,7 +203,11 @@ def _bad_information(arr: np.ndarray) -> tuple[int, str] | None:
     neg = np.zeros(len(arr), dtype=bool)
     for k in range(1, arr.shape[1] + 1):
         for subset in itertools.combinations(range(arr.shape[1]), k):
-            minor = np.linalg.det(arr[:, subset][:, :, subset]) if k > 1 else arr[:, subset[0], subset[0]]
+            minor = (
+                np.linalg.det(arr[:, subset][:, :, subset])
+                if k > 1
+                else arr[:, subset[0], subset[0]]
+            )
             neg |= minor < -_PSD_TOL * scale**k
     if neg.any():
         return int(np.flatnonzero(neg)[0]), (
@@ -222,7 +235,7 @@ def _ids(name, value, n) -> np.ndarray:
 
 
 def _upper_to_full(upper: np.ndarray, dim: int) -> np.ndarray:
-    """``(E, dim (dim + 1) / 2)`` upper triangles, row by row, as ``(E, dim, dim)`` symmetric matrices."""
+    """``(E, dim (dim + 1) / 2)`` upper triangles, row by row, as symmetric ``(E, dim, dim)``."""
     rows, cols = np.triu_indices(dim)
     full = np.zeros((upper.shape[0], dim, dim))
     full[:, rows, cols] = upper
@@ -295,10 +308,14 @@ def read_g2o(path) -> PoseGraph:
         return table[vid]
 
     pp = rows["EDGE_SE2"]
-    edges = [(lookup(pose_row, "VERTEX_SE2", ln, v[0]), lookup(pose_row, "VERTEX_SE2", ln, v[1])) for ln, v in pp]
+    edges = [
+        (lookup(pose_row, "VERTEX_SE2", ln, v[0]), lookup(pose_row, "VERTEX_SE2", ln, v[1]))
+        for ln, v in pp
+    ]
     pl = rows["EDGE_SE2_XY"]
     landmark_edges = [
-        (lookup(pose_row, "VERTEX_SE2", ln, v[0]), lookup(landmark_row, "VERTEX_XY", ln, v[1])) for ln, v in pl
+        (lookup(pose_row, "VERTEX_SE2", ln, v[0]), lookup(landmark_row, "VERTEX_XY", ln, v[1]))
+        for ln, v in pl
     ]
     fixed = [lookup(pose_row, "VERTEX_SE2", ln, v[0]) for ln, v in rows["FIX"]]
     pp_values = np.array([v[2:] for _, v in pp], dtype=float).reshape(-1, 9)
@@ -314,7 +331,9 @@ def read_g2o(path) -> PoseGraph:
         edges=np.array(edges, dtype=np.int64).reshape(-1, 2),
         measurements=pp_values[:, :3],
         information=info,
-        landmarks=np.array([landmarks_by_id[i][1] for i in landmark_ids], dtype=float).reshape(-1, 2),
+        landmarks=np.array([landmarks_by_id[i][1] for i in landmark_ids], dtype=float).reshape(
+            -1, 2
+        ),
         landmark_edges=np.array(landmark_edges, dtype=np.int64).reshape(-1, 2),
         landmark_measurements=pl_values[:, :2],
         landmark_information=landmark_info,
@@ -335,7 +354,9 @@ def _parse(path, lineno, tag, rest) -> list:
             try:
                 vid = int(text)
             except ValueError:
-                raise G2oError(f"{path}:{lineno}: {tag}: a vertex id must be an integer, got {text!r}") from None
+                raise G2oError(
+                    f"{path}:{lineno}: {tag}: a vertex id must be an integer, got {text!r}"
+                ) from None
             if vid < 0:
                 raise G2oError(f"{path}:{lineno}: {tag}: a vertex id must be >= 0, got {vid}")
             out.append(vid)
@@ -343,7 +364,9 @@ def _parse(path, lineno, tag, rest) -> list:
         try:
             value = float(text)
         except ValueError:
-            raise G2oError(f"{path}:{lineno}: {tag}: field {k + 1} is not a number: {text!r}") from None
+            raise G2oError(
+                f"{path}:{lineno}: {tag}: field {k + 1} is not a number: {text!r}"
+            ) from None
         if not np.isfinite(value):
             raise G2oError(f"{path}:{lineno}: {tag}: field {k + 1} must be finite, got {text!r}")
         out.append(value)
@@ -360,14 +383,28 @@ def write_g2o(graph: PoseGraph, path) -> Path:
     path = Path(path)
     iu3, iu2 = np.triu_indices(3), np.triu_indices(2)
     r = repr  # shortest text that parses back to the same float
-    lines = [f"VERTEX_SE2 {i} {' '.join(r(float(v)) for v in p)}" for i, p in zip(graph.pose_ids, graph.poses)]
-    lines += [f"VERTEX_XY {i} {' '.join(r(float(v)) for v in p)}" for i, p in zip(graph.landmark_ids, graph.landmarks)]
+    lines = [
+        f"VERTEX_SE2 {i} {' '.join(r(float(v)) for v in p)}"
+        for i, p in zip(graph.pose_ids, graph.poses, strict=True)
+    ]
+    lines += [
+        f"VERTEX_XY {i} {' '.join(r(float(v)) for v in p)}"
+        for i, p in zip(graph.landmark_ids, graph.landmarks, strict=True)
+    ]
     lines += [f"FIX {graph.pose_ids[k]}" for k in graph.fixed]
-    for (i, j), z, om in zip(graph.edges, graph.measurements, graph.information):
+    for (i, j), z, om in zip(graph.edges, graph.measurements, graph.information, strict=True):
         values = list(z) + list(om[iu3])
-        lines.append(f"EDGE_SE2 {graph.pose_ids[i]} {graph.pose_ids[j]} {' '.join(r(float(v)) for v in values)}")
-    for (i, k), z, om in zip(graph.landmark_edges, graph.landmark_measurements, graph.landmark_information):
+        lines.append(
+            f"EDGE_SE2 {graph.pose_ids[i]} {graph.pose_ids[j]} "
+            + " ".join(r(float(v)) for v in values)
+        )
+    for (i, k), z, om in zip(
+        graph.landmark_edges, graph.landmark_measurements, graph.landmark_information, strict=True
+    ):
         values = list(z) + list(om[iu2])
-        lines.append(f"EDGE_SE2_XY {graph.pose_ids[i]} {graph.landmark_ids[k]} {' '.join(r(float(v)) for v in values)}")
+        lines.append(
+            f"EDGE_SE2_XY {graph.pose_ids[i]} {graph.landmark_ids[k]} "
+            + " ".join(r(float(v)) for v in values)
+        )
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path

@@ -28,7 +28,7 @@ def plot_pose_graph(
     linewidth: float = 1.0,
     legend: bool = True,
 ) -> Axes:
-    """Draw a graph: the path through consecutive poses, loop-closure edges, landmarks and their edges.
+    """Draw a graph: the path through the poses, loop closures, landmarks and their edges.
 
     Edges between poses ``i`` and ``i + 1`` are the path; every other pose-pose edge
     is drawn as a thin grey line (a loop closure); pose-landmark edges as faint green
@@ -43,25 +43,50 @@ def plot_pose_graph(
         loops = np.abs(i - j) != 1
         if loops.any():
             segs = np.stack([p[i[loops], :2], p[j[loops], :2]], 1)
-            ax.add_collection(LineCollection(segs, colors="0.55", linewidths=0.5, alpha=0.5,
-                                             label=f"loop closures ({int(loops.sum())})"))
+            ax.add_collection(
+                LineCollection(
+                    segs,
+                    colors="0.55",
+                    linewidths=0.5,
+                    alpha=0.5,
+                    label=f"loop closures ({int(loops.sum())})",
+                )
+            )
     if landmarks and graph.n_landmarks:
         if len(graph.landmark_edges):
-            segs = np.stack([p[graph.landmark_edges[:, 0], :2],
-                             graph.landmarks[graph.landmark_edges[:, 1]]], 1)
-            ax.add_collection(LineCollection(segs, colors="tab:green", linewidths=0.5, alpha=0.35,
-                                             label=f"landmark edges ({len(segs)})"))
-        ax.scatter(*graph.landmarks.T, marker="x", s=25, color="tab:green", zorder=3,
-                   label=f"landmarks ({graph.n_landmarks})")
-    ax.plot(p[:, 0], p[:, 1], "-", color=color, linewidth=linewidth, label=f"{label} ({graph.n_poses})")
+            segs = np.stack(
+                [p[graph.landmark_edges[:, 0], :2], graph.landmarks[graph.landmark_edges[:, 1]]], 1
+            )
+            ax.add_collection(
+                LineCollection(
+                    segs,
+                    colors="tab:green",
+                    linewidths=0.5,
+                    alpha=0.35,
+                    label=f"landmark edges ({len(segs)})",
+                )
+            )
+        ax.scatter(
+            *graph.landmarks.T,
+            marker="x",
+            s=25,
+            color="tab:green",
+            zorder=3,
+            label=f"landmarks ({graph.n_landmarks})",
+        )
+    ax.plot(
+        p[:, 0], p[:, 1], "-", color=color, linewidth=linewidth, label=f"{label} ({graph.n_poses})"
+    )
     ax.autoscale_view()
     if legend:
         legend_outside(ax)
     return ax
 
 
-def plot_sparsity(H, ax: Axes | None = None, *, title: str | None = None, n_poses: int | None = None) -> Axes:
-    """The non-zero pattern of a (sparse) matrix as an image: black where an entry is stored and non-zero.
+def plot_sparsity(
+    H, ax: Axes | None = None, *, title: str | None = None, n_poses: int | None = None
+) -> Axes:
+    """The non-zero pattern of a (sparse) matrix as an image: black where an entry is non-zero.
 
     With ``n_poses``, a line marks where the pose block ends and the landmark block starts.
     """
@@ -73,8 +98,12 @@ def plot_sparsity(H, ax: Axes | None = None, *, title: str | None = None, n_pose
         shape = dense.shape
         rows, cols = np.nonzero(dense)
     if ax is None:
-        ax = new_axes(title or "Non-zero pattern of H", "column (state index)", "row (state index)",
-                      figsize=(6, 5.5))
+        ax = new_axes(
+            title or "Non-zero pattern of H",
+            "column (state index)",
+            "row (state index)",
+            figsize=(6, 5.5),
+        )
     elif title is not None:
         ax.set_title(title)
     # one image pixel per entry up to 600 x 600; larger matrices are binned
@@ -87,14 +116,21 @@ def plot_sparsity(H, ax: Axes | None = None, *, title: str | None = None, n_pose
     return ax
 
 
-def plot_objective_history(histories: dict, ax: Axes | None = None, *, title: str | None = None) -> Axes:
+def plot_objective_history(
+    histories: dict, ax: Axes | None = None, *, title: str | None = None
+) -> Axes:
     """The objective F per Gauss-Newton iteration (log scale), one line per run.
 
     ``histories`` maps a label to an ``objective`` array (or a history dict holding one).
     """
     if ax is None:
-        ax = new_axes(title or "Objective per Gauss-Newton iteration", "iteration",
-                      "objective F (sum of e^T Omega e, no unit)", equal=False, figsize=(7, 4.5))
+        ax = new_axes(
+            title or "Objective per Gauss-Newton iteration",
+            "iteration",
+            "objective F (sum of e^T Omega e, no unit)",
+            equal=False,
+            figsize=(7, 4.5),
+        )
     elif title is not None:
         ax.set_title(title)
     for name, h in histories.items():

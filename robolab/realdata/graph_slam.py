@@ -26,7 +26,9 @@ REAL_GRAPHS = {"intel.g2o": "Intel Research Lab", "input_M3500_g2o.g2o": "Manhat
 GTSAM_ANCHOR = {"intel.g2o": (1.795e6, 359.997, 5), "input_M3500_g2o.g2o": (2.567e6, 137.913, 6)}
 
 
-def optimize_real_graphs(optimize_graph: Callable, folder=None, names=tuple(REAL_GRAPHS)) -> dict | None:
+def optimize_real_graphs(
+    optimize_graph: Callable, folder=None, names=tuple(REAL_GRAPHS)
+) -> dict | None:
     """Run ``optimize_graph(graph)`` on each real graph; None when the data set is not on disk.
 
     Returns
@@ -43,6 +45,10 @@ def optimize_real_graphs(optimize_graph: Callable, folder=None, names=tuple(REAL
         graph = read_g2o(Path(folder) / name)
         start = time.process_time()
         optimized, history = optimize_graph(graph)
-        out[name] = {"initial": graph, "optimized": optimized, "history": history,
-                     "cpu_seconds": time.process_time() - start}
+        out[name] = {
+            "initial": graph,
+            "optimized": optimized,
+            "history": history,
+            "cpu_seconds": time.process_time() - start,
+        }
     return out

@@ -50,7 +50,7 @@ def simulate_graph(
     per_side = [int(round(w / step)), int(round(h / step))] * 2
     truth = []
     for _ in range(laps):
-        for c, n in zip(range(4), per_side):
+        for c, n in zip(range(4), per_side, strict=True):
             a, b = corners[c], corners[(c + 1) % 4]
             heading = np.arctan2(*(b - a)[::-1])
             for k in range(n):
@@ -61,8 +61,12 @@ def simulate_graph(
 
     odo = relative(truth[:-1], truth[1:]) + rng.normal(0, 1, (n - 1, 3)) * sig_o
     pairs = [(i, i + 1) for i in range(n - 1)]
-    loops = [(j, i) for i in range(n) for j in range(i - 2)
-             if np.hypot(*(truth[i, :2] - truth[j, :2])) < loop_radius and i - j > 5]
+    loops = [
+        (j, i)
+        for i in range(n)
+        for j in range(i - 2)
+        if np.hypot(*(truth[i, :2] - truth[j, :2])) < loop_radius and i - j > 5
+    ]
     loop_z = relative(truth[[j for j, _ in loops]], truth[[i for _, i in loops]]).reshape(-1, 3)
     loop_z = loop_z + rng.normal(0, 1, loop_z.shape) * sig_l
     measurements = np.concatenate([odo, loop_z])
@@ -85,7 +89,9 @@ def simulate_graph(
         guess.append(compose(guess[-1], z))
     guess = np.array(guess)
     first = np.array([np.flatnonzero(lm_of == k)[0] for k in keep], dtype=int)
-    lm_guess = np.array([transform_points(lm_z[f][None], guess[pose_of[f]])[0] for f in first]).reshape(-1, 2)
+    lm_guess = np.array(
+        [transform_points(lm_z[f][None], guess[pose_of[f]])[0] for f in first]
+    ).reshape(-1, 2)
 
     graph = PoseGraph(
         poses=guess,

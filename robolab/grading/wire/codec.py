@@ -309,19 +309,30 @@ class SparseMatrix:
     def nnz(self) -> int:
         return int(np.asarray(self.data).size)
 
-    def _checked(self, max_cells: float) -> tuple[tuple[int, int], np.ndarray, np.ndarray, np.ndarray]:
+    def _checked(
+        self, max_cells: float
+    ) -> tuple[tuple[int, int], np.ndarray, np.ndarray, np.ndarray]:
         shape = self.shape
         if not (
-            isinstance(shape, tuple) and len(shape) == 2
+            isinstance(shape, tuple)
+            and len(shape) == 2
             and all(type(n) is int and 0 <= n for n in shape)
         ):
-            raise CodecError(f"a sparse matrix's shape must be two non-negative ints, got {shape!r}")
+            raise CodecError(
+                f"a sparse matrix's shape must be two non-negative ints, got {shape!r}"
+            )
         if math.prod(shape) > max_cells:
             raise CodecError(f"a sparse matrix of shape {shape} is too large to read here")
         row, col, data = (np.asarray(a).reshape(-1) for a in (self.row, self.col, self.data))
-        if not (row.size == col.size == data.size) or row.dtype.kind not in "iu" or col.dtype.kind not in "iu":
+        if (
+            not (row.size == col.size == data.size)
+            or row.dtype.kind not in "iu"
+            or col.dtype.kind not in "iu"
+        ):
             raise CodecError("a sparse matrix needs integer rows and columns, one per value")
-        if row.size and (row.min() < 0 or row.max() >= shape[0] or col.min() < 0 or col.max() >= shape[1]):
+        if row.size and (
+            row.min() < 0 or row.max() >= shape[0] or col.min() < 0 or col.max() >= shape[1]
+        ):
             raise CodecError(f"a sparse matrix's indices lie outside its shape {shape}")
         return shape, row, col, data
 
@@ -358,7 +369,7 @@ class _Pickler(pickle.Pickler):
 
 
 def _without_sparse(value: Any, sparse: Any, depth: int = 0) -> Any:
-    """``value`` with every scipy.sparse matrix in it (through tuples, lists, dicts) as a SparseMatrix.
+    """``value`` with each scipy.sparse matrix in it (tuples, lists, dicts) as a SparseMatrix.
 
     Done before pickling, not in ``reducer_override``: pickle refuses a NEWOBJ reduction
     of one object standing for another. Deeper than MAX_DEPTH nothing is converted (the
@@ -371,7 +382,7 @@ def _without_sparse(value: Any, sparse: Any, depth: int = 0) -> Any:
     kind = type(value)
     if kind in (tuple, list):
         items = [_without_sparse(v, sparse, depth + 1) for v in value]
-        return kind(items) if any(a is not b for a, b in zip(items, value)) else value
+        return kind(items) if any(a is not b for a, b in zip(items, value, strict=True)) else value
     if kind is dict:
         items = {k: _without_sparse(v, sparse, depth + 1) for k, v in value.items()}
         return items if any(items[k] is not value[k] for k in value) else value

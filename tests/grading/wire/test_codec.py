@@ -214,12 +214,17 @@ def test_a_fraction_from_anything_else_is_refused(args):
 
 
 def test_a_scipy_sparse_result_crosses_as_its_triplets():
-    """CSR, CSC and COO matrices (nested in tuples, lists, dicts) arrive as SparseMatrix, same entries."""
+    """CSR, CSC and COO matrices (in tuples, lists, dicts) arrive as SparseMatrix, same entries."""
     import scipy.sparse
 
     dense = np.array([[4.0, 0.0, 1.0], [0.0, 0.0, 0.0], [1.0, 0.0, 2.5]])
     coo = scipy.sparse.coo_matrix(([1.0, 3.0], ([0, 0], [0, 0])), shape=(3, 3))  # duplicates summed
-    value = (scipy.sparse.csr_matrix(dense), {"H": [scipy.sparse.csc_matrix(dense)]}, coo, np.ones(2))
+    value = (
+        scipy.sparse.csr_matrix(dense),
+        {"H": [scipy.sparse.csc_matrix(dense)]},
+        coo,
+        np.ones(2),
+    )
     got = codec.loads(codec.dumps(value))
     for h in (got[0], got[1]["H"][0]):
         assert isinstance(h, codec.SparseMatrix), f"expected a SparseMatrix, got {type(h)}"
@@ -243,8 +248,13 @@ def test_a_scipy_sparse_result_crosses_as_its_triplets():
 )
 def test_a_sparse_matrix_with_bad_triplets_is_refused_when_read(fields):
     """A worker's triplets are checked before the grader builds anything from them."""
-    good = {"shape": (3, 3), "row": np.array([0, 1]), "col": np.array([1, 2]),
-            "data": np.ones(2), "format": "csr"}
+    good = {
+        "shape": (3, 3),
+        "row": np.array([0, 1]),
+        "col": np.array([1, 2]),
+        "data": np.ones(2),
+        "format": "csr",
+    }
     bad = codec.loads(codec.dumps(codec.SparseMatrix(**(good | fields))))
     for read in (bad.toarray, bad.tosparse):
         with pytest.raises(CodecError):

@@ -7,9 +7,15 @@ import numpy as np
 import scipy.sparse
 import scipy.sparse.linalg
 
-from robolab.geometry import wrap_angle
-
-from solutions.graph_slam import _blocks, _f, _check_graph
+from solutions.graph_slam import (
+    _blocks,
+    _check_graph,
+    _f,
+    pose_landmark_error,
+    pose_landmark_jacobians,
+    pose_pose_error,
+    pose_pose_jacobians,
+)
 
 
 def build_linear_system(graph):
@@ -28,7 +34,9 @@ def build_linear_system(graph):
         x, lm = g.poses[i], g.landmarks[k]
         e = pose_landmark_error(x, lm, g.landmark_measurements)
         A, B = pose_landmark_jacobians(x, lm, g.landmark_measurements)
-        parts.append(_blocks(3 * i, 3, n_p3 + 2 * k, 2, _f(A), _f(B), g.landmark_information, _f(e)))
+        parts.append(
+            _blocks(3 * i, 3, n_p3 + 2 * k, 2, _f(A), _f(B), g.landmark_information, _f(e))
+        )
     if not parts:
         return scipy.sparse.csr_matrix((n, n)), np.zeros(n)
     rows, cols, vals, bidx, bval = (np.concatenate(p) for p in zip(*parts, strict=True))

@@ -8,8 +8,7 @@ import scipy.sparse
 import scipy.sparse.linalg
 
 from robolab.geometry import wrap_angle
-
-from solutions.graph_slam import _f, _check_graph
+from solutions.graph_slam import _check_graph, _f, build_linear_system
 
 
 def gauss_newton_step(graph):
@@ -25,7 +24,9 @@ def gauss_newton_step(graph):
             # ordering and pivots on the diagonal keep the factor sparse (3x faster
             # on the Intel graph than SuperLU's default partial pivoting)
             lu = scipy.sparse.linalg.splu(
-                free, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                free,
+                permc_spec="MMD_AT_PLUS_A",
+                diag_pivot_thresh=0.0,
                 options={"SymmetricMode": True},
             )
             dx[3:] = lu.solve(-b[3:])

@@ -4,12 +4,9 @@ class: reported-estimate
 """
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.linalg
 
-from robolab.geometry import wrap_angle
-
-from solutions.graph_slam import _check_graph, _objective
+from robolab.validation import check_count, check_positive
+from solutions.graph_slam import _check_graph, _objective, gauss_newton_step
 
 
 def optimize_graph(graph, max_iterations=20, tolerance=1e-5):

@@ -4,10 +4,6 @@ class: jacobian-point
 """
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.linalg
-
-from robolab.geometry import wrap_angle
 
 from solutions.graph_slam import _last_dim
 
@@ -19,7 +15,6 @@ def pose_landmark_jacobians(x, landmark, z):
     shape = np.broadcast_shapes(x.shape[:-1], lm.shape[:-1], z.shape[:-1])
     x, lm = np.broadcast_to(x, shape + (3,)), np.broadcast_to(lm, shape + (2,))
     c, s = np.cos(x[..., 2]), np.sin(x[..., 2])
-    dx, dy = lm[..., 0] - x[..., 0], lm[..., 1] - x[..., 1]
     B = np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], -2)
     A = np.concatenate([-B, np.zeros(shape + (2, 1))], -1)
     return A, B

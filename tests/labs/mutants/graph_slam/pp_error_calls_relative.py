@@ -4,12 +4,8 @@ class: delegation
 """
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.linalg
 
-from robolab.geometry import wrap_angle
-from robolab.geometry import relative
-
+from robolab.geometry import relative, wrap_angle
 from solutions.graph_slam import _pose_pose_parts
 
 

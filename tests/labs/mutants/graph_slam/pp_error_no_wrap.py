@@ -4,10 +4,6 @@ class: angle-wrap
 """
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.linalg
-
-from robolab.geometry import wrap_angle
 
 from solutions.graph_slam import _pose_pose_parts
 

@@ -4,18 +4,14 @@ class: formula
 """
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.linalg
 
 from robolab.geometry import wrap_angle
-
 from solutions.graph_slam import _pose_pose_parts
 
 
 def pose_pose_error(xi, xj, z):
     xi, xj, z, local = _pose_pose_parts(xi, xj, z)
     u = local - z[..., :2]
-    cz, sz = np.cos(z[..., 2]), np.sin(z[..., 2])
     return np.stack(
         [
             u[..., 0],

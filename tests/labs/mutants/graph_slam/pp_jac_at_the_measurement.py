@@ -1,13 +1,11 @@
-"""A's theta column uses the measured translation t_z instead of the estimate's t_j - t_i (right only at zero error).
+"""A's theta column uses the measured translation t_z instead of t_j - t_i.
+
+It is right only where the error is zero.
 
 class: jacobian-point
 """
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.linalg
-
-from robolab.geometry import wrap_angle
 
 from solutions.graph_slam import _pose_pose_parts
 
@@ -21,7 +19,8 @@ def pose_pose_jacobians(xi, xj, z):
     gx, gy = z[..., 1], -z[..., 0]
     zero, one = np.zeros_like(c), np.ones_like(c)
     B = np.stack(
-        [np.stack([c, s, zero], -1), np.stack([-s, c, zero], -1), np.stack([zero, zero, one], -1)], -2
+        [np.stack([c, s, zero], -1), np.stack([-s, c, zero], -1), np.stack([zero, zero, one], -1)],
+        -2,
     )
     A = -B
     A[..., 0, 2] = cz * gx + sz * gy

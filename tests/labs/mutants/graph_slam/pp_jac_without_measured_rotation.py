@@ -4,10 +4,6 @@ class: formula
 """
 
 import numpy as np
-import scipy.sparse
-import scipy.sparse.linalg
-
-from robolab.geometry import wrap_angle
 
 from solutions.graph_slam import _pose_pose_parts
 
@@ -21,7 +17,8 @@ def pose_pose_jacobians(xi, xj, z):
     gx, gy = local[..., 1], -local[..., 0]
     zero, one = np.zeros_like(c), np.ones_like(c)
     B = np.stack(
-        [np.stack([c, s, zero], -1), np.stack([-s, c, zero], -1), np.stack([zero, zero, one], -1)], -2
+        [np.stack([c, s, zero], -1), np.stack([-s, c, zero], -1), np.stack([zero, zero, one], -1)],
+        -2,
     )
     A = -B
     A[..., 0, 2] = cz * gx + sz * gy
