@@ -227,7 +227,7 @@ checks.check_pose_landmark_error(pose_landmark_error)
 
 # %% tags=["exercise"]
 def pose_landmark_jacobians(x, landmark, z):
-    r"""Jacobians :math:`A = \partial e/\partial x_i` (2 x 3), :math:`B = \partial e/\partial l_k` (2 x 2).
+    r"""Jacobians :math:`A = \partial e/\partial x_i` (2 x 3) and :math:`B = \partial e/\partial l`.
 
     .. math::
 

@@ -167,7 +167,7 @@ def pose_landmark_error(x, landmark, z):
 
 
 def pose_landmark_jacobians(x, landmark, z):
-    r"""Jacobians :math:`A = \partial e/\partial x_i` (2 x 3), :math:`B = \partial e/\partial l` (2 x 2).
+    r"""Jacobians :math:`A = \partial e/\partial x_i` (2 x 3) and :math:`B = \partial e/\partial l`.
 
     .. math::
 

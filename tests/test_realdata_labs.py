@@ -152,3 +152,27 @@ def test_missing_real_data_raises_a_friendly_note(tmp_path):
 
     with pytest.raises(DataSetUnavailable, match="fetch"):
         neato_localization(tmp_path)
+
+
+# -- lab 09: graph SLAM on Intel and M3500 ----------------------------------------------------
+def test_optimize_real_graphs_reaches_the_gtsam_anchor():
+    """The reference's Gauss-Newton reaches GTSAM 4.3's objectives within 0.1 %, in <= its iterations + 1."""
+    from robolab.evaluation import graph_objective
+    from robolab.realdata.graph_slam import GTSAM_ANCHOR, optimize_real_graphs
+    from solutions.graph_slam import optimize_graph
+
+    results = optimize_real_graphs(optimize_graph, _need("graph_slam"))
+    assert set(results) == set(GTSAM_ANCHOR)
+    for name, r in results.items():
+        f0, f_final, iterations = GTSAM_ANCHOR[name]
+        assert graph_objective(r["initial"]) == pytest.approx(f0, rel=5e-4), name
+        assert graph_objective(r["optimized"]) == pytest.approx(f_final, rel=1e-3), name
+        assert len(r["history"]["step"]) <= iterations + 1, name
+        assert r["cpu_seconds"] > 0
+
+
+def test_optimize_real_graphs_without_the_data_set_says_so(tmp_path, monkeypatch):
+    import robolab.realdata.graph_slam as rg
+
+    monkeypatch.setattr(rg, "locate", lambda name: None)
+    assert rg.optimize_real_graphs(lambda g: (g, {})) is None

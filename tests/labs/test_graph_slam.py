@@ -34,7 +34,12 @@ requires = pytest.mark.requires
 #: The reference solution's grading time, seconds (correct example, -j 2, 2026-12-02).
 REFERENCE_SECONDS = 3.0
 
-_ERRORS = ["pose_pose_error", "pose_pose_jacobians", "pose_landmark_error", "pose_landmark_jacobians"]
+_ERRORS = [
+    "pose_pose_error",
+    "pose_pose_jacobians",
+    "pose_landmark_error",
+    "pose_landmark_jacobians",
+]
 USES = {
     "build_linear_system": _ERRORS,
     "gauss_newton_step": ["build_linear_system", *_ERRORS],
