@@ -28,7 +28,7 @@
 # x^* = \arg\min_x F(x), \qquad F(x) = \sum_{\langle i,j\rangle} e_{ij}^T\, \Omega_{ij}\, e_{ij} + \sum_{\langle i,k\rangle} e_{ik}^T\, \Omega_{ik}\, e_{ik} .
 # $$
 #
-# With Gaussian noise this is the maximum of the posterior over the whole path and map (Probabilistic Robotics eq. 11.5 writes $F/2$ as GraphSLAM's negative log posterior). You will write, in order: the errors and Jacobians of the two kinds of edges, the sparse linear system of one Gauss-Newton iteration, the iteration itself, and the loop that runs it to convergence. After each exercise a check cell runs a quick test.
+# With Gaussian noise this is the maximum of the posterior over the whole path and map (Probabilistic Robotics, chapter 11, writes $F/2$ as GraphSLAM's negative log posterior, up to a constant). You will write, in order: the errors and Jacobians of the two kinds of edges, the sparse linear system of one Gauss-Newton iteration, the iteration itself, and the loop that runs it to convergence. After each exercise a check cell runs a quick test.
 #
 # Units: metres, radians. Angles are wrapped to $[-\pi, \pi)$ with `robolab.geometry.wrap_angle`. The objective $F$ is a sum of squared Mahalanobis distances and has no unit.
 
@@ -438,7 +438,7 @@ ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1), fontsize="small")
 plt.show()
 
 # %% [markdown]
-# **Question.** The objective falls by orders of magnitude in the first step, then barely changes. Which part of the error makes the problem non-linear, and why does a poor initial heading cost more iterations than a poor initial position? What would you expect from a single Gauss-Newton step if all headings were already right? Compare the final $F$ with the number of residuals minus free parameters printed above: what does it say about the noise model of the edges?
+# **Question.** The objective falls by orders of magnitude in the first two steps, then barely changes. Which part of the error makes the problem non-linear, and why does a poor initial heading cost more iterations than a poor initial position? What would you expect from a single Gauss-Newton step if all headings were already right? Compare the final $F$ with the number of residuals minus free parameters printed above: what does it say about the noise model of the edges?
 #
 # *Your answer here.*
 

@@ -270,7 +270,7 @@ def graph_objective(graph: PoseGraph) -> float:
     Pose-pose edges (Grisetti et al., "A tutorial on graph-based SLAM", 2010):
     :math:`e_{ij} = \operatorname{t2v}(Z_{ij}^{-1} X_i^{-1} X_j)`, its angle wrapped
     to :math:`[-\pi, \pi)`; pose-landmark edges: :math:`e_{ik} = R_i^T (l_k - t_i) - z_{ik}`.
-    Probabilistic Robotics chapter 11 (eq. 11.3-11.5) writes the same sum as
+    Probabilistic Robotics chapter 11 writes the same sum as
     GraphSLAM's negative log posterior, up to a factor 1/2 and a constant.
 
     Parameters
