@@ -65,9 +65,20 @@ def _dense(H):
     return _f(H)
 
 
+def _v2t(p):
+    """Homogeneous 3 x 3 matrices of poses (..., 3)."""
+    p = np.asarray(p, dtype=float)
+    c, s = np.cos(p[..., 2]), np.sin(p[..., 2])
+    T = np.zeros(p.shape[:-1] + (3, 3))
+    T[..., 0, 0], T[..., 0, 1], T[..., 1, 0], T[..., 1, 1] = c, -s, s, c
+    T[..., :2, 2], T[..., 2, 2] = p[..., :2], 1.0
+    return T
+
+
 def _pp_error(xi, xj, z):
-    """The test's own pose-pose error t2v(Z^-1 X_i^-1 X_j)."""
-    return relative(z, relative(xi, xj))
+    """The test's own pose-pose error, t2v(Z^-1 X_i^-1 X_j) with matrix inverses."""
+    M = np.linalg.inv(_v2t(z)) @ np.linalg.inv(_v2t(xi)) @ _v2t(xj)
+    return np.stack([M[..., 0, 2], M[..., 1, 2], np.arctan2(M[..., 1, 0], M[..., 0, 0])], -1)
 
 
 def _pl_error(x, lm, z):
