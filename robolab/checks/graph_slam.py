@@ -81,25 +81,27 @@ def _pose_landmark_error(x, lm, z):
     return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1]]) - z
 
 
-def _compare_jacobian(what, got, expected, shape):
-    got = expect_shape(what, got, shape)
-    if not np.allclose(got, expected, atol=1e-5):
-        raise CheckFailed(
-            f"{what} differs from finite differences of the error: expected "
-            f"{np.array2string(expected, precision=4)}, got {np.array2string(got, precision=4)}"
-        )
+def _against_differences(jacobians, error, args, names) -> None:
+    """Each returned Jacobian against central differences of ``error`` in argument k."""
+    for k, (got, name) in enumerate(zip(jacobians, names, strict=True)):
+        expected = _numeric_jacobian(lambda v, k=k: error(*args[:k], v, *args[k + 1 :]), args[k])
+        got = expect_shape(name, got, expected.shape)
+        if not np.allclose(got, expected, atol=1e-5):
+            raise CheckFailed(
+                f"{name} differs from finite differences of the error: expected "
+                f"{np.array2string(expected, precision=4)}, got {np.array2string(got, precision=4)}"
+            )
 
 
 @check
 def check_pose_pose_jacobians(pose_pose_jacobians) -> None:
     """A and B against central finite differences of the error at one edge."""
     xi, xj, z = np.array([1.0, -0.5, 0.7]), np.array([2.5, 1.0, -0.4]), np.array([1.2, 0.9, -1.0])
-    A, B = pose_pose_jacobians(xi, xj, z)
-    _compare_jacobian(
-        "A = de/dx_i", A, _numeric_jacobian(lambda v: _pose_pose_error(v, xj, z), xi), (3, 3)
-    )
-    _compare_jacobian(
-        "B = de/dx_j", B, _numeric_jacobian(lambda v: _pose_pose_error(xi, v, z), xj), (3, 3)
+    _against_differences(
+        pose_pose_jacobians(xi, xj, z),
+        _pose_pose_error,
+        (xi, xj, z),
+        ("A = de/dx_i", "B = de/dx_j"),
     )
 
 
@@ -129,12 +131,11 @@ def check_pose_landmark_error(pose_landmark_error) -> None:
 def check_pose_landmark_jacobians(pose_landmark_jacobians) -> None:
     """A (2 x 3) and B (2 x 2) against central finite differences of the landmark error."""
     x, lm, z = np.array([1.0, -0.5, 0.7]), np.array([-2.0, 3.0]), np.array([1.0, 2.0])
-    A, B = pose_landmark_jacobians(x, lm, z)
-    _compare_jacobian(
-        "A = de/dx_i", A, _numeric_jacobian(lambda v: _pose_landmark_error(v, lm, z), x), (2, 3)
-    )
-    _compare_jacobian(
-        "B = de/dl_k", B, _numeric_jacobian(lambda v: _pose_landmark_error(x, v, z), lm), (2, 2)
+    _against_differences(
+        pose_landmark_jacobians(x, lm, z),
+        _pose_landmark_error,
+        (x, lm, z),
+        ("A = de/dx_i", "B = de/dl_k"),
     )
 
 
