@@ -27,6 +27,7 @@ ENFORCED = [
     "mcl",
     "ekf_mapping",
     "fastslam",
+    "ekf_slam",
     "graph_slam",
 ]
 #: numpy.testing functions without an err_msg parameter.

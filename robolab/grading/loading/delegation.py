@@ -79,6 +79,10 @@ FORBIDDEN: dict[str, dict[str, list[str]]] = {
         "predict_poses": ["robolab.fiducials.unicycle"],
         "h": ["robolab.fiducials._range_bearing"],
     },
+    "ekf_slam": {
+        "predict": ["robolab.fiducials.unicycle"],
+        "observation": ["robolab.fiducials._range_bearing"],
+    },
     "graph_slam": {
         # graph_objective stays allowed: it returns only the scalar F, which no exercise
         # returns alone (optimize_graph may record it in its history)
