@@ -26,8 +26,8 @@ module        reads
 
 from robolab.datasets.carmen import CarmenError, CarmenLaser, CarmenLog, read_carmen
 from robolab.datasets.fetch import REGISTRY, DataSetUnavailable, fetch, locate
-from robolab.datasets.g2o import G2oError, PoseGraph, read_g2o, write_g2o
 from robolab.datasets.freiburg import FreiburgData, FreiburgError, read_freiburg
+from robolab.datasets.g2o import G2oError, PoseGraph, read_g2o, write_g2o
 from robolab.datasets.mrclam import MrclamError, MrclamRun, read_mrclam
 from robolab.datasets.rosbag import Recording, read_recording, read_track
 
