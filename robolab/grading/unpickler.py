@@ -47,8 +47,9 @@ class DecodeLimits:
         Work the decoder may do beyond reading the message, in units of about one
         machine-word operation: ``base_work + work_per_byte * len(message)`` for the
         whole message. Hashing dict keys and set items (their expanded size) and
-        normalising Fractions (the gcd is quadratic in their size) are charged, wherever the stream refers to an object again
-        through the memo, so a small message can never demand much work.
+        normalising Fractions (the gcd is quadratic in their size) are charged,
+        wherever the stream refers to an object again through the memo, so a small
+        message can never demand much work.
     max_equal_hashes : int
         Most keys of one dict (or items of one set) sharing one hash value.
     max_depth : int

@@ -17,8 +17,15 @@ from pathlib import Path
 
 import pytest
 
-from robolab.grading.labs import LabError, MAX_NOTEBOOK_DEPTH, lab_of_notebook, read_notebook
-from tests.grading.test_batch import BAYES, csv_rows, grade, project, root, rows  # noqa: F401
+from robolab.grading.labs import MAX_NOTEBOOK_DEPTH, LabError, lab_of_notebook, read_notebook
+from tests.grading.test_batch import (  # noqa: F401 - fixtures
+    BAYES,
+    csv_rows,
+    grade,
+    project,
+    root,
+    rows,
+)
 
 GOOD = json.loads((BAYES / "correct.ipynb").read_text(encoding="utf-8"))
 
@@ -127,7 +134,7 @@ def test_a_batch_with_every_kind_of_bad_file_grades_the_good_one(tmp_path, capsy
     assert {r["submission"] for r in csv_rows(out)} == set(graded)
 
 
-def test_feedback_names_a_linked_submission_as_given_never_its_target(tmp_path, project):
+def test_feedback_names_a_linked_submission_as_given_never_its_target(tmp_path, project):  # noqa: F811
     # A link to the answers scores nothing, and its feedback must not print where it points.
     answers = project / "solutions" / "bayes.py"
     linked = tmp_path / "subs" / "mallory.ipynb"

@@ -8,9 +8,9 @@ tracemalloc), never as milliseconds.
 from __future__ import annotations
 
 import fractions
+import pickle
 import random
 import re
-import pickle
 import struct
 import sys
 import time

@@ -110,7 +110,7 @@ def test_the_worker_refuses_delegation_only_while_that_exercise_runs(tmp_path):
         proxy.close()
 
 
-# --- every alias of a guarded function refuses (issue 25) ------------------------------------------
+# --- every alias of a guarded function refuses (issue 25) ---------------------------------------
 
 
 def _aliases(dotted: str) -> dict[str, object]:
@@ -169,7 +169,7 @@ def test_every_alias_copy_and_bound_method_of_a_guarded_function_refuses(entry):
     functions = delegation._functions(resolve(dotted)[2])
     codes = [f.__code__ for f in functions]
     with forbidden(exercise, {}):
-        for how, call in aliases.items():
+        for _how, call in aliases.items():
             with pytest.raises(DelegationError, match=f"write {exercise} yourself"):
                 call()
     assert [f.__code__ for f in functions] == codes, "the functions' code must be restored"
