@@ -20,11 +20,12 @@ Python is left as it is, which is what IPython's transformation does to it.
 from __future__ import annotations
 
 import ast
+import builtins
 import functools
 import json
 import re
 import symtable
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -49,6 +50,7 @@ PYTHON_CELL_MAGICS = frozenset({"time", "capture"})
 LABEL_CHARS = 40
 
 _DEF_LINE = re.compile(r"^\s*(?:async\s+def|def|class)\s+([A-Za-z_]\w*)", re.MULTILINE)
+_WORD = re.compile(r"[A-Za-z_]\w*")
 
 
 class NotebookError(Exception):
@@ -582,11 +584,17 @@ def load_notebook(
 
     needed = needed_cells(cells, names)
     wanted = set(names) | {n for cell in needed for n in cell.reads_now | cell.reads_later}
-    problems = [
-        CellProblem(cell.index, "syntax", _syntax_message(cell.error), labels[cell.index])
-        for cell in cells
-        if cell.error is not None and set(_DEF_LINE.findall(raw[cell.index])) & wanted
-    ]
+    # A cell that does not parse binds nothing: name it when it defines a graded function
+    # or mentions a name the needed cells use and no cell binds (an imports cell).
+    unbound = wanted - {n for cell in cells for n in cell.binds} - set(dir(builtins))
+    problems = []
+    for cell in cells:
+        if cell.error is None:
+            continue
+        missing = sorted(unbound & set(_WORD.findall(raw[cell.index])))
+        if missing or set(_DEF_LINE.findall(raw[cell.index])) & wanted:
+            message = _syntax_message(cell.error, missing)
+            problems.append(CellProblem(cell.index, "syntax", message, labels[cell.index]))
     # A skipped cell's `from __future__` imports still hold in the cells after it.
     chosen = {cell.index for cell in needed}
     kept = [
@@ -627,7 +635,12 @@ def _joined(cells: list[tuple[int, str]]) -> str:
     return text + "\n" if text else ""
 
 
-def _syntax_message(exc: SyntaxError) -> str:
+def _syntax_message(exc: SyntaxError, needed: Sequence[str] = ()) -> str:
     where = f"line {exc.lineno}" if exc.lineno else "somewhere"
     text = f": {exc.text.strip()}" if exc.text and exc.text.strip() else ""
-    return f"it does not parse, so nothing in it is defined: {exc.msg} ({where}{text})"
+    uses = (
+        f"; your graded functions use {', '.join(needed)}, which only this cell would define"
+        if needed
+        else ""
+    )
+    return f"it does not parse, so nothing in it is defined: {exc.msg} ({where}{text}){uses}"
