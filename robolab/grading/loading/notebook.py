@@ -490,6 +490,10 @@ def _read(path: Path) -> dict:
             f"{path}: is not a notebook: not valid JSON "
             f"(line {exc.lineno} column {exc.colno}: {exc.msg})"
         ) from exc
+    except RecursionError:
+        raise NotebookError(f"{path}: is not a notebook: its JSON is nested too deeply") from None
+    except ValueError as exc:  # a number of more digits than Python converts
+        raise NotebookError(f"{path}: is not a notebook: not valid JSON ({exc})") from None
     if not isinstance(nb, dict) or not isinstance(nb.get("cells"), list):
         raise NotebookError(f"{path}: is not a notebook: it has no list of cells")
     if not isinstance(nb.get("nbformat"), int) or nb["nbformat"] < 4:
