@@ -140,7 +140,7 @@ def read_submission(path: str | os.PathLike) -> bytes:
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
     except OSError as exc:
-        raise LabError(f"{shown}: cannot be read: {exc.strerror or exc}") from None
+        raise LabError(f"{shown}: cannot read the notebook: {exc.strerror or exc}") from None
     try:
         info = os.fstat(fd)
         if not stat.S_ISREG(info.st_mode):
@@ -154,7 +154,7 @@ def read_submission(path: str | os.PathLike) -> bytes:
         with os.fdopen(os.dup(fd), "rb") as f:
             data = f.read(MAX_NOTEBOOK_BYTES + 1)
     except OSError as exc:
-        raise LabError(f"{shown}: cannot be read: {exc.strerror or exc}") from None
+        raise LabError(f"{shown}: cannot read the notebook: {exc.strerror or exc}") from None
     finally:
         os.close(fd)
     if len(data) > MAX_NOTEBOOK_BYTES:

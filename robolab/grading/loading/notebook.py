@@ -29,6 +29,8 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from robolab.grading.labs import LabError, read_submission
+
 __all__ = [
     "CellProblem",
     "LoadedNotebook",
@@ -432,7 +434,7 @@ def lab_exercises(lab: str | None) -> tuple[str, ...]:
     """
     if not lab:
         return ()
-    from robolab.grading.labs import Lab, LabError, project_root
+    from robolab.grading.labs import Lab, project_root
 
     try:
         found = Lab(lab, project_root())
@@ -477,10 +479,10 @@ def _text(source: object) -> str:
 
 
 def _read(path: Path) -> dict:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise NotebookError(f"{path}: cannot read the notebook: {exc.strerror or exc}") from exc
+    try:  # never blocks on a fifo, never reads a device or a huge file without end
+        text = read_submission(path).decode("utf-8")
+    except LabError as exc:
+        raise NotebookError(str(exc)) from None
     except UnicodeDecodeError as exc:
         raise NotebookError(f"{path}: is not a notebook: not UTF-8 text ({exc.reason})") from exc
     try:

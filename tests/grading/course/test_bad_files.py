@@ -82,13 +82,13 @@ def _special_files(folder: Path) -> dict[str, tuple[Path, str]]:
     cases = {
         "folder": (folder / "folder.ipynb", "folder"),
         "fifo": (folder / "fifo.ipynb", "fifo"),
-        "dangling": (folder / "dangling.ipynb", "cannot be read"),
-        "loop": (folder / "loop.ipynb", "cannot be read"),
+        "dangling": (folder / "dangling.ipynb", "cannot read"),
+        "loop": (folder / "loop.ipynb", "cannot read"),
     }
     if os.geteuid() != 0:  # root reads any file
         locked = _write(folder, "locked", json.dumps(GOOD))
         locked.chmod(0)
-        cases["locked"] = (locked, "cannot be read")
+        cases["locked"] = (locked, "cannot read")
     return cases
 
 
@@ -153,3 +153,17 @@ def test_feedback_names_a_linked_submission_as_given_never_its_target(tmp_path, 
         text += json.dumps(row)
         assert f"{name}.ipynb" in text
         assert "solutions" not in text and "elsewhere" not in text and "secret" not in text
+
+
+def test_checking_a_file_that_is_not_a_notebook_says_why_without_blocking(tmp_path, capsys):
+    # The loader reads through labs.read_submission: a fifo is refused from its type.
+    from robolab.cli import main
+
+    special = _special_files(tmp_path)
+    for name in ("fifo", "folder"):
+        path, word = special[name]
+        assert main(["check", str(path)]) != 0
+        assert word in capsys.readouterr().err
+    deep = _write(tmp_path, "deep", TEXT_CASES["deep_cell"][0])
+    assert main(["check", str(deep)]) != 0
+    assert "nested too deeply" in capsys.readouterr().err
