@@ -17,15 +17,19 @@ names, so the grader never uses :func:`pickle.loads` on worker output: it uses
   item can never be smuggled in);
 * decodes under a :class:`DecodeLimits` budget checked before anything is
   allocated or hashed: message bytes, opcodes, buffer lengths, integer and
-  Fraction bit sizes, ``range`` lengths, string lengths, and the work of
-  hashing dict keys and set items (counted through shared references, with
-  few keys of one hash per container).
+  Fraction bit sizes, ``range`` lengths, string lengths, and a work budget
+  proportional to the message's size, charged before any operation whose cost
+  is not bounded by the bytes that spell it (the stream can refer to one object
+  again and again through the memo): hashing dict keys and set items, the gcd
+  normalising a Fraction. Bytearrays copied from one buffer may not hold more
+  bytes than the message. Few keys may share a hash.
 
 After unpickling, the value is walked once more: allowed types only, nesting
 depth, no value containing itself, and its *expanded* size -- every element
 counted as often as it is referenced, so a list nested 8 deep of ``[a] * 10``
 counts 1e8 leaves although its message has 200 bytes -- within the budget.
-Every cost is thus linear in the message and bounded by the grader's own
+Every cost is thus linear in the message (at most a small multiple of
+decoding a plain message of the same size) and bounded by the grader's own
 limits, so no memory or time limit is needed around the decode itself. The
 opcode engine is :mod:`robolab.grading.wire.unpickler`; this module holds what is
 allowed and the final walk.
@@ -135,16 +139,31 @@ def _scalar(dtype: Any, *args: Any) -> np.generic:
 _FRACTION_TEXT = re.compile(r"-?[0-9]{1,4300}(/[0-9]{1,4300})?")
 
 
+def _words(bits: int) -> int:
+    return 1 + bits // 64
+
+
 def _fraction(numerator: Any, denominator: Any = 1) -> fractions.Fraction:
     # Python 3.12+ pickles Fraction(numerator, denominator), 3.10-3.11 Fraction("n/d").
     # Accept exactly those two forms, so the constructor's float, Decimal and
     # scientific-notation paths are never reached; bound the sizes before the gcd.
+    # The stream can name one big int or text again and again through the memo, so the
+    # gcd (quadratic in the words of the two parts) and the parsing of decimal text
+    # (quadratic too) are charged to the message's work budget before they run.
+    unpickler = active()
     if type(numerator) is str and denominator == 1 and _FRACTION_TEXT.fullmatch(numerator):
+        top, _, bottom = numerator.partition("/")
+        n, d = _words(len(top) * 10 // 3), _words(len(bottom) * 10 // 3)
+        unpickler.charge(n * n + d * d + n * d, "Fractions (to parse and normalise)")
         return fractions.Fraction(numerator)
     if type(numerator) is not int or type(denominator) is not int:
         raise CodecError("a Fraction must be built from two ints or their 'n/d' text")
-    check_int(numerator, active().limits)
-    check_int(denominator, active().limits)
+    check_int(numerator, unpickler.limits)
+    check_int(denominator, unpickler.limits)
+    unpickler.charge(
+        _words(numerator.bit_length()) * _words(denominator.bit_length()),
+        "Fractions (to normalise)",
+    )
     return fractions.Fraction(numerator, denominator)
 
 
@@ -178,6 +197,11 @@ def _range(*args: Any) -> range:
 def _bytearray(data: Any = b"") -> bytearray:
     if type(data) is not bytes:
         raise CodecError("a bytearray must be built from bytes")
+    # The memo can name one buffer many times: every copy must be paid for by message bytes.
+    unpickler = active()
+    unpickler.copied += len(data)
+    if unpickler.copied > unpickler.size:
+        raise CodecError("the result's bytearrays hold more bytes than its message")
     return bytearray(data)
 
 
