@@ -132,10 +132,43 @@ def lab(request: pytest.FixtureRequest):
     if reference is not None and "total_wall_seconds" not in overrides:
         # the submission's total call time: a few times the reference solution's
         overrides["total_wall_seconds"] = reference_budget(Limits(**overrides), reference)
-    proxy = open_submission(notebook, lab=name, limits=Limits(**overrides) if overrides else None)
+    from robolab.grading.answers import Answers
+
+    # While a test grades an exercise, the exercises below it answer as the reference.
+    answers = Answers.for_lab(name, getattr(request.module, "USES", None))
+    grading = request.config.stash.setdefault(_grading_key, _Grading())
+    grading.answers.append(answers)
+    answers.exercise = grading.exercise
+    proxy = open_submission(
+        notebook, lab=name, limits=Limits(**overrides) if overrides else None, answers=answers
+    )
     request.addfinalizer(proxy.close)
     request.config.stash[_problems_key].extend(_plain(p) for p in getattr(proxy, "problems", []))
     return proxy
+
+
+@dataclasses.dataclass
+class _Grading:
+    """The exercise the running test grades, and the answers that must know it."""
+
+    exercise: str | None = None
+    answers: list = dataclasses.field(default_factory=list)
+
+
+_grading_key = pytest.StashKey[_Grading]()
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    # Before the fixtures: a module fixture calling the notebook already grades this exercise.
+    grading = item.config.stash.setdefault(_grading_key, _Grading())
+    try:
+        grade = grade_of(item)
+    except ValueError:  # refused at collection already
+        grade = None
+    grading.exercise = grade.exercise if grade is not None else None
+    for answers in grading.answers:
+        answers.exercise = grading.exercise
 
 
 # --- the grades marker ------------------------------------------------------------------------

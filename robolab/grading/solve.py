@@ -14,10 +14,12 @@ import ast
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-
-import nbformat
+from typing import TYPE_CHECKING
 
 from robolab.grading.labs import Lab, exercise_cells, lab_of_notebook, project_root
+
+if TYPE_CHECKING:
+    import nbformat
 
 __all__ = ["SolutionSource", "SolveError", "solve_notebook", "solve_paths"]
 
@@ -129,6 +131,8 @@ class SolutionSource:
 
 def solve_notebook(nb: nbformat.NotebookNode, lab: Lab) -> nbformat.NotebookNode:
     """A solved copy of ``nb`` (a notebook of ``lab``), with every output cleared."""
+    import nbformat  # here: grading reads solutions (robolab.grading.answers) without it
+
     solved = nbformat.from_dict(nb)
     try:
         cells = exercise_cells(solved)
@@ -167,6 +171,8 @@ def _notebooks(inputs: Sequence[Path]) -> list[Path]:
 
 def solve_paths(inputs: Sequence[Path], out: Path, root: Path | None = None) -> list[Path]:
     """Solve each notebook (folders: every ``*.ipynb`` in them) into ``out``; return the paths."""
+    import nbformat
+
     root = root or project_root()
     notebooks = _notebooks([Path(p) for p in inputs])
     names = [p.name for p in notebooks]
