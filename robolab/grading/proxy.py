@@ -654,6 +654,8 @@ class SubmissionProxy:
         self._timed_out: set[str] = set()
         #: Wall seconds spent in calls so far (against ``limits.budget_seconds``).
         self.spent_seconds = 0.0
+        #: Wall seconds the grader spent answering depcalls (not the submission's time).
+        self.answering_seconds = 0.0
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("__") or name.startswith("_"):
@@ -810,7 +812,7 @@ class SubmissionProxy:
         budget_bound = left < wall
         wall = min(wall, left)
         worker.wall_seconds = wall
-        started = time.monotonic()
+        started, answering = time.monotonic(), self.answering_seconds
         deadline = started + wall
         below = self.answers.stubbed(name) if self.answers is not None else ()
         try:
@@ -839,7 +841,10 @@ class SubmissionProxy:
                 f"{name}(): {exc.message}", kind=exc.kind, student_traceback=exc.student_traceback
             ) from None
         finally:
+            # The grader's own time answering depcalls counts for the call's wall limit (a
+            # bound), not for the submission's total budget: it is not the student's code.
             self.spent_seconds += time.monotonic() - started
+            self.spent_seconds -= self.answering_seconds - answering
         return self._answer(worker, name, call_id, message, args, kwargs)
 
     def _depcalls(self, call_id: int, below: tuple[str, ...]) -> Callable[[Any], tuple] | None:
@@ -849,6 +854,13 @@ class SubmissionProxy:
         answers = self.answers
 
         def answer(message: tuple) -> tuple:
+            started = time.monotonic()
+            try:
+                return checked(message)
+            finally:
+                self.answering_seconds += time.monotonic() - started
+
+        def checked(message: tuple) -> tuple:
             if len(message) != 6 or message[1] != call_id or message[2] not in below:
                 raise StudentCodeError(
                     f"the worker asked for an answer out of turn ({_short(message[:3])})",

@@ -156,10 +156,18 @@ def lab(request: pytest.FixtureRequest):
 
 @dataclasses.dataclass
 class _Grading:
-    """The exercise the running test grades, and the answers that must know it."""
+    """The exercise the running test grades, the answers that must know it, and which
+    exercises have passed every one of their tests so far."""
 
     exercise: str | None = None
     answers: list = dataclasses.field(default_factory=list)
+    tests: dict = dataclasses.field(default_factory=dict)  # (module, exercise) -> tests
+    passed: dict = dataclasses.field(default_factory=dict)  # (module, exercise) -> passed
+
+    def clean(self, module: str, exercise: str) -> bool:
+        """Every test of ``exercise`` in ``module`` has run and passed."""
+        key = (module, exercise)
+        return self.passed.get(key, 0) >= self.tests.get(key, 0)
 
 
 _grading_key = pytest.StashKey[_Grading]()
@@ -174,8 +182,16 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
     except ValueError:  # refused at collection already
         grade = None
     grading.exercise = grade.exercise if grade is not None else None
+    module = item.nodeid.split("::")[0]
     for answers in grading.answers:
         answers.exercise = grading.exercise
+        # Answered by the reference only when needed: while every exercise below this one
+        # passes all its own tests (they run first), the student's own versions are used,
+        # and a correct notebook is graded without a single call-back.
+        answers.insulated = any(
+            not grading.clean(module, below)
+            for below in answers.below.get(grading.exercise, ())
+        )
 
 
 # --- the grades marker ------------------------------------------------------------------------
@@ -275,6 +291,12 @@ _failed_key = pytest.StashKey[set]()
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Iterator[None]:
     report = yield
+    if report.when == "call" and report.passed:
+        grading = item.config.stash.setdefault(_grading_key, _Grading())
+        grade = grade_of(item)
+        if grade is not None:
+            key = (item.nodeid.split("::")[0], grade.exercise)
+            grading.passed[key] = grading.passed.get(key, 0) + 1
     # A stub's NotImplementedError is cheap to meet again, and its feedback ("not implemented
     # yet") is clearer than "not run": only other failures make the gated tests skip.
     stub = call.excinfo is not None and call.excinfo.errisinstance(NotImplementedError)
@@ -315,11 +337,15 @@ def pytest_collection_modifyitems(
 ) -> None:
     problems = []
     exercises: dict[tuple[str, str], set[str]] = {}  # (module, test) -> exercises it grades
+    grading = config.stash.setdefault(_grading_key, _Grading())
     for item in items:
         try:
             grade = grade_of(item)
         except ValueError:
             grade = None
+        if grade is not None:
+            key = (item.nodeid.split("::")[0], grade.exercise)
+            grading.tests[key] = grading.tests.get(key, 0) + 1
         exercises.setdefault((item.nodeid.split("::")[0], _base_name(item)), set()).add(
             grade.exercise if grade is not None else None
         )
