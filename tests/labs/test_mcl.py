@@ -920,7 +920,7 @@ def _run(lab, bag, field, particles, seed, every, t_end, params=None):
 #: The end-to-end runs of mcl_step count only when mcl_step's own parts and the pieces it is
 #: made of (the student's motion and measurement models, normalization, resampling) pass.
 # mcl_step's own core tests: the models it calls answer as the reference while it is graded
-# (robolab.grading.answers), so their mistakes cannot cost these points.
+# (robolab.grading.running.answers), so their mistakes cannot cost these points.
 MCL_PIECES = (
     "test_mcl_step_update_thresholds_and_resample_interval",
     "test_mcl_step_multiplies_and_carries_incoming_weights",
