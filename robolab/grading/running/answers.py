@@ -149,18 +149,18 @@ class Answers:
     exercise : str or None
         The exercise the running hidden test grades (set by the pytest plugin);
         None answers nothing: every call runs the student's code only.
-    insulated : bool
-        Whether the exercises below it answer as the reference. The pytest plugin
-        sets it only while one of them fails (or has not yet passed) its own tests:
-        otherwise the student's own versions are as good as the grader can tell,
-        and a correct notebook is graded without a single call-back.
+    suspects : frozenset of str or None
+        Which of the exercises below it answer as the reference; None: all of them.
+        The pytest plugin names those that fail (or have not yet passed) their own
+        tests: the others are as good as the grader can tell, so they run as the
+        student wrote them, and a correct notebook is graded without a call-back.
     """
 
     def __init__(self, reference: ModuleType, below: Mapping[str, frozenset[str]]) -> None:
         self.reference = reference
         self.below = dict(below)
         self.exercise: str | None = None
-        self.insulated = True
+        self.suspects: frozenset[str] | None = None
 
     @classmethod
     def for_lab(cls, lab: str, declared: Mapping[str, Iterable[str]] | None = None) -> Answers:
@@ -174,19 +174,17 @@ class Answers:
 
     def stubbed(self, name: str) -> tuple[str, ...]:
         """The names a call of ``name`` gets answered by the grader while the exercise is graded."""
-        if self.exercise is None or not self.insulated:
-            return ()
-        return tuple(sorted(self.below.get(self.exercise, frozenset()) - {name}))
+        return tuple(sorted(self._answered() - {name}))
 
     def direct(self, name: str) -> Callable | None:
         """The reference function answering a test's own call of ``name``, or None."""
-        if (
-            self.exercise is None
-            or not self.insulated
-            or name not in self.below.get(self.exercise, ())
-        ):
-            return None
-        return getattr(self.reference, name, None)
+        return getattr(self.reference, name, None) if name in self._answered() else None
+
+    def _answered(self) -> frozenset[str]:
+        if self.exercise is None:
+            return frozenset()
+        below = self.below.get(self.exercise, frozenset())
+        return below if self.suspects is None else below & self.suspects
 
     def answer(self, name: str, args: Any, kwargs: Any, rngs: Any) -> tuple:
         """The reply to one stub call: ``("answer", value, observation, rng states)``,

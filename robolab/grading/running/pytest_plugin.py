@@ -185,11 +185,13 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
     module = item.nodeid.split("::")[0]
     for answers in grading.answers:
         answers.exercise = grading.exercise
-        # Answered by the reference only when needed: while every exercise below this one
-        # passes all its own tests (they run first), the student's own versions are used,
-        # and a correct notebook is graded without a single call-back.
-        answers.insulated = any(
-            not grading.clean(module, below) for below in answers.below.get(grading.exercise, ())
+        # Answered by the reference only where needed: an exercise below this one that
+        # passes all its own tests (they run first) runs as the student wrote it, so a
+        # correct notebook is graded without a single call-back.
+        answers.suspects = frozenset(
+            below
+            for below in answers.below.get(grading.exercise, ())
+            if not grading.clean(module, below)
         )
 
 

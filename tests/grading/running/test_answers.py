@@ -218,3 +218,19 @@ def test_every_lab_has_an_acyclic_table_covering_what_its_tests_declare(lab):
     assert set(table) == set(lab_exercises(lab.name)), f"{lab.name}: {sorted(table)}"
     for exercise, used in declared.items():
         assert set(used) <= table[exercise], f"{lab.name}: {exercise} below {table[exercise]}"
+
+
+def test_only_the_suspects_answer_as_the_reference(submission):
+    """With suspects named, the other exercises below run as the student wrote them."""
+    sub, answers = submission
+    answers.exercise = "outer_in_place"
+    answers.suspects = frozenset({"inner"})  # bump passes its own tests: the student's runs
+    try:
+        same, after = sub.outer_in_place(np.arange(3.0))
+        assert same is False, "the student's bump returns a new array: bump(a) is not a"
+        np.testing.assert_array_equal(after, np.arange(3.0), err_msg="the student's bump")
+        answers.suspects = frozenset({"bump"})
+        same, after = sub.outer_in_place(np.arange(3.0))
+        assert same is True, "bump is a suspect: the reference's bump returns its argument"
+    finally:
+        answers.suspects = None
