@@ -653,6 +653,8 @@ class SubmissionProxy:
         self._closed = False
         self._loaded = False
         self._timed_out: set[str] = set()
+        #: Exercises whose reference answered a depcall in the current worker.
+        self._disclosed: set[str] = set()
         #: Wall seconds spent in calls so far (against ``limits.budget_seconds``).
         self.spent_seconds = 0.0
         #: Wall seconds the grader spent answering depcalls (not the submission's time).
@@ -800,6 +802,15 @@ class SubmissionProxy:
         ):
             self._discard()  # restart before the lifetime CPU limit could cut a fair call short
             worker = None
+        if (
+            worker is not None
+            and self.answers is not None
+            and self.answers.exercise in self._disclosed
+        ):
+            # This worker was given the reference's answers of the exercise now graded (it
+            # was below one graded earlier): a fresh worker, so nothing it kept can answer.
+            self._discard()
+            worker = None
         if worker is None:
             worker = self._worker = self._start()
         self._call_id += 1
@@ -868,6 +879,8 @@ class SubmissionProxy:
                     kind="protocol",
                 )
             reply = answers.answer(*message[2:])
+            if reply[0] in ("answer", "raise"):
+                self._disclosed.add(message[2])
             try:
                 pickle.dumps(reply, protocol=5)
             except Exception as exc:  # noqa: BLE001 - a reference value that cannot cross
@@ -922,6 +935,7 @@ class SubmissionProxy:
         )
 
     def _discard(self) -> None:
+        self._disclosed.clear()
         if self._worker is not None:
             self._worker.close()
             self._worker = None

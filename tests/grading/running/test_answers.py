@@ -157,6 +157,24 @@ def test_without_an_exercise_every_call_is_the_student_code(submission):
         sub.outer(np.array([1.0]), np.random.default_rng(0))
 
 
+def test_a_worker_told_an_answer_never_grades_that_exercise(submission):
+    """Once inner's reference answered in a worker, inner is graded in a fresh one."""
+    sub, answers = submission
+    answers.exercise = "outer"
+    sub.outer(np.array([1.0]), np.random.default_rng(0))  # inner answered by the reference
+    told = sub._worker.process.pid
+    answers.exercise = "outer_catches"
+    sub.outer_catches(np.array([2.0]))
+    assert sub._worker.process.pid == told, "grading another exercise keeps the worker"
+    answers.exercise = "inner"
+    with pytest.raises(RuntimeError, match="must never run"):
+        sub.inner(np.array([1.0]))
+    assert sub._worker.process.pid != told, (
+        "inner is graded in the worker that was given inner's reference answers: it could "
+        "have kept them"
+    )
+
+
 def test_a_test_calling_an_exercise_below_gets_the_reference(submission):
     """A hidden test's own call of inner while it grades outer is the reference's, in the grader."""
     sub, answers = submission
