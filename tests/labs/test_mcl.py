@@ -919,16 +919,11 @@ def _run(lab, bag, field, particles, seed, every, t_end, params=None):
 
 #: The end-to-end runs of mcl_step count only when mcl_step's own parts and the pieces it is
 #: made of (the student's motion and measurement models, normalization, resampling) pass.
+# mcl_step's own core tests: the models it calls answer as the reference while it is graded
+# (robolab.grading.running.answers), so their mistakes cannot cost these points.
 MCL_PIECES = (
     "test_mcl_step_update_thresholds_and_resample_interval",
     "test_mcl_step_multiplies_and_carries_incoming_weights",
-    "test_motion_model_straight",
-    "test_motion_model_turning",
-    "test_motion_model_across_the_pi_seam",
-    "test_model_matches_table_6_3_oracle",
-    "test_model_log_form_when_a_mixture_term_vanishes",
-    "test_normalize_log_weights_without_underflow",
-    "test_low_variance_resample_counts",
 )
 
 

@@ -13,7 +13,9 @@ Wire protocol: each message is an 8-byte little-endian length followed by a
 pickle (protocol 5). Grader -> worker (trusted, plain pickle)::
 
     ("define", [(cell_index, source), ...], wall_seconds, cpu_seconds)
-    ("call", call_id, name, args, kwargs, cpu_seconds)
+    ("call", call_id, name, args, kwargs, cpu_seconds, answered_names)
+    ("answer", value, observation, rng_states) | ("raise", info) | ("own", reason)
+                                              # replies to a depcall, during a call
 
 Worker -> grader (untrusted: decoded with :func:`robolab.grading.wire.codec.loads`)::
 
@@ -24,6 +26,9 @@ Worker -> grader (untrusted: decoded with :func:`robolab.grading.wire.codec.load
     ("error", call_id, {"type", "bases", "message", "traceback"}, observation)
     ("missing", call_id, name)
     ("exit", call_id, description)            # SystemExit / KeyboardInterrupt
+    ("depcall", call_id, name, args, kwargs, rngs)  # a call of an exercise below the one
+                                              # graded, answered by the grader's reference
+                                              # (robolab.grading.wire.depcall)
 
 Once student code has run, nothing this process says can be trusted: the
 grader enforces every limit itself and decodes with an allow-list.
@@ -219,6 +224,23 @@ def _call(
     write_frame(response_fd, payload)
 
 
+def _asker(request_fd: int, response_fd: int, call_id: int):
+    """Send a depcall of the running call to the grader and return its reply."""
+
+    def ask(message: tuple) -> tuple:
+        try:
+            payload = _dumps((message[0], call_id, *message[1:]))
+        except Exception as exc:  # noqa: BLE001 - arguments that are not plain data
+            return ("own", f"the arguments cannot be sent: {_text(exc)}")
+        write_frame(response_fd, payload)
+        frame = read_frame(request_fd)
+        if frame is None:
+            raise EOFError("the grader closed the request pipe during a call")
+        return pickle.loads(frame)  # noqa: S301 - from the grader, the trusted side
+
+    return ask
+
+
 def reap_children() -> None:
     """Reap the children the grader killed after the last call (the worker is their reaper)."""
     while True:
@@ -252,9 +274,14 @@ def serve(request_fd: int, response_fd: int) -> int:
             from robolab.grading.loading.delegation import (
                 forbidden,  # the library's copy of the exercise
             )
+            from robolab.grading.wire.depcall import answered
 
-            with forbidden(request[2], namespace):  # disabled while this exercise runs
-                _call(response_fd, namespace, *request[1:])
+            call_id, name, args, kwargs, cpu_seconds, *below = request[1:]
+            ask = _asker(request_fd, response_fd, call_id)
+            # The library's copy of the exercise is disabled while it runs; the exercises
+            # below it are answered by the grader's reference (a mistake costs once).
+            with forbidden(name, namespace), answered(below[0] if below else (), namespace, ask):
+                _call(response_fd, namespace, call_id, name, args, kwargs, cpu_seconds)
         else:
             raise ValueError(f"unknown request {request[0]!r}")
 

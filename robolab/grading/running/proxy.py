@@ -33,9 +33,10 @@ import threading
 import time
 import warnings
 import weakref
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import robolab
 from robolab.grading.isolation import processes, sandbox
@@ -43,6 +44,9 @@ from robolab.grading.isolation.worker import HEADER
 from robolab.grading.loading.kernel import load_budget
 from robolab.grading.loading.notebook import CellProblem, LoadedNotebook, load_notebook
 from robolab.grading.wire import codec, observe
+
+if TYPE_CHECKING:
+    from robolab.grading.running.answers import Answers
 
 __all__ = [
     "reference_budget",
@@ -348,6 +352,10 @@ class _Worker:
     def send(self, message: tuple, deadline: float) -> None:
         """Send a request; CPU time and new processes count against it from now on."""
         self.clock.start_call()  # before the worker can act on the request
+        self.reply(message, deadline)
+
+    def reply(self, message: tuple, deadline: float) -> None:
+        """Send a message within the running request (the answer to a depcall)."""
         payload = pickle.dumps(message, protocol=5)
         frame = memoryview(HEADER.pack(len(payload)) + payload)
         poller = select.poll()
@@ -364,8 +372,40 @@ class _Worker:
                 raise
             frame = frame[written:]
 
-    def receive(self, deadline: float, cpu_limit: float | None) -> Any:
-        """The next message, decoded with the codec, within the wall and CPU limits."""
+    def receive(
+        self,
+        deadline: float,
+        cpu_limit: float | None,
+        on_depcall: Callable[[Any], tuple] | None = None,
+    ) -> Any:
+        """The next message, decoded with the codec, within the wall and CPU limits.
+
+        A ``("depcall", ...)`` message on the way (robolab.grading.running.answers) is answered
+        with ``on_depcall(message)`` and the wait goes on, within the same limits; without
+        ``on_depcall`` it is the answer, which the caller refuses as out of turn.
+        """
+        decoding = 0.0  # the grader's CPU spent decoding on this submission's behalf
+        while True:
+            data = self._read_message(deadline, cpu_limit)
+            # Charged to the call (the codec bounds it to a small multiple of the size).
+            started = decode_clock()
+            try:
+                message = codec.loads(data)
+            except codec.CodecError:
+                self._end_call(cpu_limit, decoding + decode_clock() - started)
+                raise  # a timeout is the first thing to say
+            decoding += decode_clock() - started
+            if on_depcall is None or not (
+                isinstance(message, tuple) and message and message[0] == "depcall"
+            ):
+                self._end_call(cpu_limit, decoding)
+                return message
+            reply = on_depcall(message)
+            self._check_time(deadline, cpu_limit)  # the reference's time counts for the call
+            self.reply(reply, deadline)
+
+    def _read_message(self, deadline: float, cpu_limit: float | None) -> bytes:
+        """One length-prefixed message's bytes, within the wall and CPU limits."""
         buffer = bytearray()
         size: int | None = None
         poller = select.poll()
@@ -391,13 +431,7 @@ class _Worker:
             raise StudentCodeError(
                 "the worker sent more than one answer to one request", kind="protocol"
             )
-        # Decoding is the grader's CPU, spent on this submission's behalf: it is
-        # charged to the call (the codec bounds it to a small multiple of the size).
-        started = decode_clock()
-        try:
-            return codec.loads(bytes(buffer[HEADER.size :]))
-        finally:
-            self._end_call(cpu_limit, decode_clock() - started)
+        return bytes(buffer[HEADER.size :])
 
     def _end_call(self, cpu_limit: float | None, decoding: float = 0.0) -> None:
         """Kill what the call started, charging its CPU and ``decoding``; check the scratch."""
@@ -599,10 +633,20 @@ class SubmissionProxy:
         Cells that did not parse, or raised while being defined.
     sandbox : SandboxReport
         The isolation the worker applied.
+    answers : Answers or None
+        Answers the exercises below the one being graded with the reference
+        (:mod:`robolab.grading.running.answers`); None: every call runs the student's code only.
     """
 
-    def __init__(self, notebook: LoadedNotebook, lab: str | None, limits: Limits) -> None:
+    def __init__(
+        self,
+        notebook: LoadedNotebook,
+        lab: str | None,
+        limits: Limits,
+        answers: Answers | None = None,
+    ) -> None:
         self.lab = lab
+        self.answers = answers
         self.path = notebook.path
         # The parsed names until the worker reports what actually got defined.
         self.functions: list[str] = list(notebook.functions)
@@ -617,12 +661,22 @@ class SubmissionProxy:
         self._closed = False
         self._loaded = False
         self._timed_out: set[str] = set()
+        #: Exercises whose reference answered a depcall in the current worker.
+        self._disclosed: set[str] = set()
         #: Wall seconds spent in calls so far (against ``limits.budget_seconds``).
         self.spent_seconds = 0.0
+        #: Wall seconds the grader spent answering depcalls (not the submission's time).
+        self.answering_seconds = 0.0
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("__") or name.startswith("_"):
             raise AttributeError(name)
+        answers = self.__dict__.get("answers")
+        reference = answers.direct(name) if answers is not None else None
+        if reference is not None:
+            # A test's own call of an exercise below the one it grades: the reference's
+            # answer, so the student's version of it cannot move this exercise's points.
+            return reference
         if name not in self.__dict__.get("functions", ()):
             raise MissingFunction(f"the notebook does not define {name}()", kind="missing")
 
@@ -756,6 +810,15 @@ class SubmissionProxy:
         ):
             self._discard()  # restart before the lifetime CPU limit could cut a fair call short
             worker = None
+        if (
+            worker is not None
+            and self.answers is not None
+            and self.answers.exercise in self._disclosed
+        ):
+            # This worker was given the reference's answers of the exercise now graded (it
+            # was below one graded earlier): a fresh worker, so nothing it kept can answer.
+            self._discard()
+            worker = None
         if worker is None:
             worker = self._worker = self._start()
         self._call_id += 1
@@ -769,11 +832,12 @@ class SubmissionProxy:
         budget_bound = left < wall
         wall = min(wall, left)
         worker.wall_seconds = wall
-        started = time.monotonic()
+        started, answering = time.monotonic(), self.answering_seconds
         deadline = started + wall
+        below = self.answers.stubbed(name) if self.answers is not None else ()
         try:
-            worker.send(("call", call_id, name, args, kwargs, cpu), deadline)
-            message = worker.receive(deadline, cpu)
+            worker.send(("call", call_id, name, args, kwargs, cpu, below), deadline)
+            message = worker.receive(deadline, cpu, self._depcalls(call_id, below))
         except codec.CodecError as exc:
             self._discard()
             raise StudentCodeError(
@@ -797,8 +861,41 @@ class SubmissionProxy:
                 f"{name}(): {exc.message}", kind=exc.kind, student_traceback=exc.student_traceback
             ) from None
         finally:
+            # The grader's own time answering depcalls counts for the call's wall limit (a
+            # bound), not for the submission's total budget: it is not the student's code.
             self.spent_seconds += time.monotonic() - started
+            self.spent_seconds -= self.answering_seconds - answering
         return self._answer(worker, name, call_id, message, args, kwargs)
+
+    def _depcalls(self, call_id: int, below: tuple[str, ...]) -> Callable[[Any], tuple] | None:
+        """The handler of the running call's depcalls: the reference's answers (see answers.py)."""
+        if not below or self.answers is None:
+            return None
+        answers = self.answers
+
+        def answer(message: tuple) -> tuple:
+            started = time.monotonic()
+            try:
+                return checked(message)
+            finally:
+                self.answering_seconds += time.monotonic() - started
+
+        def checked(message: tuple) -> tuple:
+            if len(message) != 6 or message[1] != call_id or message[2] not in below:
+                raise StudentCodeError(
+                    f"the worker asked for an answer out of turn ({_short(message[:3])})",
+                    kind="protocol",
+                )
+            reply = answers.answer(*message[2:])
+            if reply[0] in ("answer", "raise"):
+                self._disclosed.add(message[2])
+            try:
+                pickle.dumps(reply, protocol=5)
+            except Exception as exc:  # noqa: BLE001 - a reference value that cannot cross
+                return ("own", f"the reference's answer cannot be sent: {exc}")
+            return reply
+
+        return answer
 
     def _answer(
         self,
@@ -846,6 +943,7 @@ class SubmissionProxy:
         )
 
     def _discard(self) -> None:
+        self._disclosed.clear()
         if self._worker is not None:
             self._worker.close()
             self._worker = None
@@ -883,7 +981,11 @@ def _warn_if_weak(report: sandbox.SandboxReport) -> None:
 
 
 def open_submission(
-    path: str | Path, lab: str | None = None, *, limits: Limits | None = None
+    path: str | Path,
+    lab: str | None = None,
+    *,
+    limits: Limits | None = None,
+    answers: Answers | None = None,
 ) -> SubmissionProxy:
     """Load a notebook into an isolated worker and return a proxy to its functions.
 
@@ -897,6 +999,9 @@ def open_submission(
         ``lab`` is then the notebook's metadata).
     limits : Limits, optional
         Resource limits of the worker (defaults: :class:`Limits`).
+    answers : Answers, optional
+        The reference's answers for the exercises below the one being graded
+        (:mod:`robolab.grading.running.answers`; the pytest plugin passes them).
 
     Returns
     -------
@@ -917,7 +1022,7 @@ def open_submission(
         warnings.warn(
             f"{notebook.path} says it is lab {notebook.lab!r}, graded as {lab!r}", stacklevel=2
         )
-    proxy = SubmissionProxy(notebook, lab or notebook.lab, limits or Limits())
+    proxy = SubmissionProxy(notebook, lab or notebook.lab, limits or Limits(), answers)
     try:
         proxy._worker = proxy._start()
     except StudentCodeError:

@@ -32,12 +32,19 @@ Two more markers shape the credit and the feedback (``docs/grading.md``):
   function works on valid input, so a function that always raises earns nothing;
   an end-to-end test requires the core formula's tests, so a wrong formula cannot
   keep the end-to-end points. A gated test that passed on its own is reported as
-  failed, with a message naming the tests it waits for.
+  failed, with a message naming the tests it waits for. The named tests must grade
+  the same exercise (refused at collection otherwise): a mistake costs once.
 - ``@pytest.mark.uses("p_max", ...)`` (or a module-level table ``USES =
   {"beam_range_finder_model": ["p_hit", ...]}`` applying to every test of an
   exercise): the test relies on other exercises, which the student's function
-  may call. When one of those fails its own tests, the failure message of this
-  test says so and points to that exercise's section of the feedback.
+  may call. ``USES`` also adds to the exercises below each one
+  (:func:`robolab.grading.running.answers.dependency_table`), which answer as the
+  reference while it is graded. When one of those fails its own tests, the
+  failure message of this test notes it and points to that exercise's section.
+
+While a test runs, the proxy knows the exercise it grades (its ``grades``
+marker): the exercises below that one answer as the reference
+(:mod:`robolab.grading.running.answers`), so each exercise's points measure its own logic.
 
 ``message`` is the failure's own message (pytest's ``reprcrash.message``, or the
 student's traceback when the student's code raised), never the hidden test's
@@ -132,10 +139,60 @@ def lab(request: pytest.FixtureRequest):
     if reference is not None and "total_wall_seconds" not in overrides:
         # the submission's total call time: a few times the reference solution's
         overrides["total_wall_seconds"] = reference_budget(Limits(**overrides), reference)
-    proxy = open_submission(notebook, lab=name, limits=Limits(**overrides) if overrides else None)
+    from robolab.grading.running.answers import Answers
+
+    # While a test grades an exercise, the exercises below it answer as the reference.
+    answers = Answers.for_lab(name, getattr(request.module, "USES", None))
+    grading = request.config.stash.setdefault(_grading_key, _Grading())
+    grading.answers.append(answers)
+    answers.exercise = grading.exercise
+    proxy = open_submission(
+        notebook, lab=name, limits=Limits(**overrides) if overrides else None, answers=answers
+    )
     request.addfinalizer(proxy.close)
     request.config.stash[_problems_key].extend(_plain(p) for p in getattr(proxy, "problems", []))
     return proxy
+
+
+@dataclasses.dataclass
+class _Grading:
+    """The exercise the running test grades, the answers that must know it, and which
+    exercises have passed every one of their tests so far."""
+
+    exercise: str | None = None
+    answers: list = dataclasses.field(default_factory=list)
+    tests: dict = dataclasses.field(default_factory=dict)  # (module, exercise) -> tests
+    passed: dict = dataclasses.field(default_factory=dict)  # (module, exercise) -> passed
+
+    def clean(self, module: str, exercise: str) -> bool:
+        """Every test of ``exercise`` in ``module`` has run and passed."""
+        key = (module, exercise)
+        return self.passed.get(key, 0) >= self.tests.get(key, 0)
+
+
+_grading_key = pytest.StashKey[_Grading]()
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    # Before the fixtures: a module fixture calling the notebook already grades this exercise.
+    grading = item.config.stash.setdefault(_grading_key, _Grading())
+    try:
+        grade = grade_of(item)
+    except ValueError:  # refused at collection already
+        grade = None
+    grading.exercise = grade.exercise if grade is not None else None
+    module = item.nodeid.split("::")[0]
+    for answers in grading.answers:
+        answers.exercise = grading.exercise
+        # Answered by the reference only where needed: an exercise below this one that
+        # passes all its own tests (they run first) runs as the student wrote it, so a
+        # correct notebook is graded without a single call-back.
+        answers.suspects = frozenset(
+            below
+            for below in answers.below.get(grading.exercise, ())
+            if not grading.clean(module, below)
+        )
 
 
 # --- the grades marker ------------------------------------------------------------------------
@@ -204,16 +261,26 @@ def uses_of(item: pytest.Item) -> list[str]:
     return [n for n in names if grade is None or n != grade.exercise]
 
 
-def _check_requires(item: pytest.Item, names_by_module: dict[str, set[str]]) -> str | None:
+def _check_requires(
+    item: pytest.Item, exercises: dict[tuple[str, str], set[str]], exercise: str | None
+) -> str | None:
     wanted = required_of(item)
     module = item.nodeid.split("::")[0]
     if any(not isinstance(n, str) for n in wanted):
         return f"{REQUIRES} takes test function names, got {wanted!r}"
-    unknown = [n for n in wanted if n not in names_by_module.get(module, set())]
+    unknown = [n for n in wanted if (module, n) not in exercises]
     if unknown:
         return f"{REQUIRES} names tests that {module} does not have: {unknown}"
     if _base_name(item) in wanted:
         return f"{REQUIRES} names the test itself"
+    # A mistake costs once: a test pays for its own exercise, whatever the others do.
+    foreign = [n for n in wanted if exercises[(module, n)] - {exercise}]
+    if foreign:
+        return (
+            f"{REQUIRES} names tests of other exercises than {exercise}: {foreign} (a test's "
+            "points may wait only for its own exercise's tests; the exercises it builds on "
+            "answer as the reference while it is graded)"
+        )
     return None
 
 
@@ -225,6 +292,12 @@ _failed_key = pytest.StashKey[set]()
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Iterator[None]:
     report = yield
+    if report.when == "call" and report.passed:
+        grading = item.config.stash.setdefault(_grading_key, _Grading())
+        grade = grade_of(item)
+        if grade is not None:
+            key = (item.nodeid.split("::")[0], grade.exercise)
+            grading.passed[key] = grading.passed.get(key, 0) + 1
     # A stub's NotImplementedError is cheap to meet again, and its feedback ("not implemented
     # yet") is clearer than "not run": only other failures make the gated tests skip.
     stub = call.excinfo is not None and call.excinfo.errisinstance(NotImplementedError)
@@ -264,16 +337,27 @@ def pytest_collection_modifyitems(
     session: pytest.Session, config: pytest.Config, items: list[pytest.Item]
 ) -> None:
     problems = []
-    names_by_module: dict[str, set[str]] = {}
+    exercises: dict[tuple[str, str], set[str]] = {}  # (module, test) -> exercises it grades
+    grading = config.stash.setdefault(_grading_key, _Grading())
     for item in items:
-        names_by_module.setdefault(item.nodeid.split("::")[0], set()).add(_base_name(item))
+        try:
+            grade = grade_of(item)
+        except ValueError:
+            grade = None
+        if grade is not None:
+            key = (item.nodeid.split("::")[0], grade.exercise)
+            grading.tests[key] = grading.tests.get(key, 0) + 1
+        exercises.setdefault((item.nodeid.split("::")[0], _base_name(item)), set()).add(
+            grade.exercise if grade is not None else None
+        )
     for item in items:
         try:
             grade = grade_of(item)
         except ValueError as exc:
             problems.append(f"{item.nodeid}: {exc}")
             continue
-        if (bad := _check_requires(item, names_by_module)) is not None:
+        exercise = grade.exercise if grade is not None else None
+        if (bad := _check_requires(item, exercises, exercise)) is not None:
             problems.append(f"{item.nodeid}: {bad}")
         if grade is None and _is_hidden_test(item):
             problems.append(
@@ -437,7 +521,7 @@ class GradingCollector:
 
 
 def _label(record: dict) -> str:
-    return f"\"{record['description']}\""
+    return f'"{record["description"]}"'
 
 
 def settle(records: list[dict]) -> list[dict]:
@@ -449,7 +533,9 @@ def settle(records: list[dict]) -> list[dict]:
     - A passed test whose required tests did not all pass becomes "failed", with
       a message naming them (repeated until nothing changes: gates can chain).
     - A failed test that uses an exercise which fails some of its own tests gets
-      a closing sentence pointing to that exercise's section.
+      a closing note pointing to that exercise's section (the points do not move:
+      while the test ran, that exercise answered as the reference, see
+      :mod:`robolab.grading.running.answers`).
     """
     out = [dict(r) for r in records]
     by_test: dict[tuple[str, str], list[dict]] = {}
@@ -488,12 +574,12 @@ def settle(records: list[dict]) -> list[dict]:
         culprits = [u for u in r.get("uses", []) if u in failing and u != r["exercise"]]
         if culprits:
             names = ", ".join(f"`{u}`" for u in culprits)
+            one = len(culprits) == 1
             r["message"] = (r.get("message") or "").rstrip() + (
-                f"\n\nThis may be because {names} "
-                f"{'is' if len(culprits) == 1 else 'are'} wrong: "
-                f"{'it fails' if len(culprits) == 1 else 'they fail'} "
-                f"{'its' if len(culprits) == 1 else 'their'} own checks, which "
-                f"{r['exercise']} relies on; see the section on {names} and fix "
-                f"{'it' if len(culprits) == 1 else 'them'} first."
+                f"\n\nNote: {names} {'is' if one else 'are'} wrong too: "
+                f"{'it fails its' if one else 'they fail their'} own checks (see the section "
+                f"on {names}). This check gave {r['exercise']} correct versions of "
+                f"{'it' if one else 'them'}, so what it found is in {r['exercise']} itself; "
+                f"fixing {names} first may still make it easier to see."
             )
     return out

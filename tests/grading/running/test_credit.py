@@ -55,7 +55,7 @@ def test_every_parametrization_of_a_required_test_counts_and_gates_chain():
 
 
 def test_a_failure_points_to_the_wrong_function_it_uses():
-    """When p_max fails its own checks, a failing model test says it may be because of p_max."""
+    """When p_max fails its own checks, a failing model test notes that p_max is wrong too."""
     raw = [
         _rec("test_p_max", "failed", exercise="p_max"),
         _rec("test_p_hit", "passed", exercise="p_hit"),

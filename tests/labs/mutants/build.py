@@ -10,8 +10,9 @@ it is spliced, since the solved notebook defines those helpers already.
 A mutant's notebook is the lab's solved notebook (``robolab solve``) with that
 one function's definition replaced by the mutant's source. To keep ``make
 test`` quick, mutants of *independent* exercises share a notebook: two
-exercises are independent when neither's reference solution calls the other
-(transitively), so each one's points still depend only on its own mutant.
+exercises are independent when neither is below the other (the grader's
+dependency table, robolab.grading.running.answers), so each one's points depend
+only on its own mutant, and what a notebook loses elsewhere is collateral.
 
 Two more variants per lab grade the "free points" problem: every exercise
 raising ValueError, and every exercise returning its first argument.
@@ -26,8 +27,9 @@ from pathlib import Path
 
 import nbformat
 
-from robolab.grading.exports.solve import SolutionSource, solve_notebook
+from robolab.grading.exports.solve import solve_notebook
 from robolab.grading.labs import Lab, exercise_cells
+from robolab.grading.running.answers import dependency_table
 
 HERE = Path(__file__).resolve().parent
 
@@ -182,16 +184,13 @@ def free_points_variant(lab: Lab, kind: str) -> nbformat.NotebookNode:
     return nb
 
 
-def _calls(lab: Lab) -> dict[str, set[str]]:
-    """For each exercise, the other exercises its reference solution calls, transitively."""
-    source = SolutionSource.read(lab.solution)
-    names = exercises(lab)
-    out = {}
-    for name in names:
-        reach = set(source.dependencies([name], exclude=set()))
-        # dependencies() stops at exercises in `exclude` only; look through every name
-        out[name] = {n for n in reach | set(source.uses.get(name, ())) if n in names} - {name}
-    return out
+def _calls(lab: Lab) -> dict[str, frozenset[str]]:
+    """For each exercise, the exercises below it: those the grader answers as the reference
+    while it is graded (its reference solution's calls and the hidden tests' ``USES``)."""
+    import importlib
+
+    declared = getattr(importlib.import_module(f"tests.labs.test_{lab.name}"), "USES", None)
+    return dependency_table(lab.solution, exercises(lab), declared)
 
 
 def packs(lab: Lab, mutants: list[Mutant]) -> list[list[Mutant]]:
