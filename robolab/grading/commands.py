@@ -20,7 +20,7 @@ from pathlib import Path
 
 from robolab.grading.labs import LabError, find_lab
 
-__all__ = ["check", "data", "grade", "gradescope", "release", "solve"]
+__all__ = ["check", "data", "grade", "gradescope", "merge", "release", "solve"]
 
 #: Exit code when a command could not do its job (as opposed to a low score).
 FAILED = 2
@@ -76,8 +76,12 @@ def grade(
     late_penalty: float = 0.0,
     late_cap: float = 100.0,
     submitted_times: Path | None = None,
+    shard: str | None = None,
 ) -> int:
     """Grade notebooks into ``out`` (gradebook.csv, gradebook.json, feedback/) and print a summary.
+
+    ``shard`` (``"K/N"``) grades only the K-th of N slices of ``submissions``
+    (:mod:`~robolab.grading.shards`) and writes ``out/shard.json`` for ``robolab merge``.
 
     Exit 0 whenever grading ran, whatever the scores; 2 when it could not
     (a user error, unknown lab, pytest missing, hidden tests that do not run);
@@ -104,6 +108,10 @@ def grade(
     from robolab.grading.course import Course
 
     try:
+        if shard is not None:
+            from robolab.grading.shards import parse_shard
+
+            shard = parse_shard(shard)
         if lab is not None:
             find_lab(lab)
         inputs = _course_inputs(
@@ -117,6 +125,8 @@ def grade(
     except (LabError, ValueError) as exc:
         return _error(str(exc))
     planned = state.plan(list(submissions), lab, root, timeout)
+    if shard is not None:
+        planned = _slice(planned, shard, out)
     todo = [item for item in planned if item.previous is None]
     for item in planned:
         if item.previous is not None:
@@ -156,11 +166,7 @@ def grade(
     names = {item.name for item in planned}
     this_run = [r for r in state.results() if r.name in names]
     print(course.summary(this_run))
-    print(
-        f"\ngradebook: {_shown(out / 'gradebook.csv')} and {_shown(out / 'gradebook.json')}; "
-        f"feedback: {_shown(out / 'feedback')}/"
-        + "".join(f"; {kind}: {_shown(path)}" for kind, path in written.items())
-    )
+    _print_outputs(out, written)
     reused = len(planned) - len(todo)
     if reused:
         print(f"{reused} unchanged submission(s) kept from the last run (not regraded)")
@@ -171,6 +177,73 @@ def grade(
             file=sys.stderr,
         )
     return FAILED if fatal else 0
+
+
+def _print_outputs(out: Path, written: dict[str, Path]) -> None:
+    print(
+        f"\ngradebook: {_shown(out / 'gradebook.csv')} and {_shown(out / 'gradebook.json')}; "
+        f"feedback: {_shown(out / 'feedback')}/"
+        + "".join(f"; {kind}: {_shown(path)}" for kind, path in written.items())
+    )
+
+
+def merge(
+    shards: Sequence[Path],
+    *,
+    out: Path,
+    roster: Path | None = None,
+    overrides: Path | None = None,
+    exports: Sequence[str] = (),
+    assignment: str | None = None,
+    due: str | None = None,
+    late_penalty: float = 0.0,
+    late_cap: float = 100.0,
+    submitted_times: Path | None = None,
+) -> int:
+    """Merge the output folders of ``robolab grade --shard K/N`` into ``out``.
+
+    ``out`` gets what one unsharded ``robolab grade`` of the same files with the same
+    course options writes (gradebook, feedback, exports, class report); see
+    :mod:`~robolab.grading.merge`. Exit 0, or 2 when the shards cannot be merged.
+    """
+    from robolab.grading.batch import BatchError, prepare_out
+    from robolab.grading.course import Course
+    from robolab.grading.merge import merged_state, read_shards
+
+    try:
+        inputs = _course_inputs(
+            roster, overrides, due, late_penalty, late_cap, submitted_times, exports
+        )
+        parts = read_shards(shards)
+        state, modified = merged_state(parts, out)
+        out = prepare_out(out)
+        course = Course(
+            out, state, *inputs, exports=exports, assignment=assignment, modified=modified
+        )
+        if inputs[1] is not None:
+            course.keep_overrides(Path(overrides))
+    except (BatchError, ValueError) as exc:
+        return _error(str(exc))
+    written = course.publish(final=True)
+    results = state.results()
+    print(f"merged {len(parts)} shard(s): {len(results)} submission(s)")
+    print(course.summary(results))
+    _print_outputs(out, written)
+    return 0
+
+
+def _slice(planned, shard, out: Path):
+    """The submissions of ``shard`` among ``planned`` (the whole batch); writes its manifest."""
+    from robolab.grading.batch import relative_paths
+    from robolab.grading.shards import batch_identity, deal, write_manifest
+
+    relative = relative_paths([item.key for item in planned])
+    dealt = deal(relative, [item.lab for item in planned], shard.count)
+    mine = [i for i, k in enumerate(dealt) if k == shard.index - 1]
+    identity = batch_identity(relative, [item.digest for item in planned])
+    members = [(planned[i].name, relative[i], planned[i].path) for i in mine]
+    write_manifest(out, shard, identity, len(planned), members)
+    return [planned[i] for i in mine]
 
 
 def _shown(path) -> str:

@@ -46,6 +46,9 @@ class Course:
         use that file when it exists.
     policy, times
         The late policy and the timestamp rows (None: file modification times).
+    modified
+        Modification times by submission name, used instead of the files' own when
+        ``times`` is None (a merge of shards, whose files may be on other machines).
     """
 
     def __init__(
@@ -59,8 +62,10 @@ class Course:
         *,
         exports: Sequence[str] = (),
         assignment: str | None = None,
+        modified: dict | None = None,
     ):
         self.out, self.state = Path(out), state
+        self.modified = modified or {}
         self.students, self.policy, self.times = students, policy, times
         self.exports, self.assignment = tuple(exports), assignment
         stored = self.out / OVERRIDES_FILE
@@ -83,7 +88,10 @@ class Course:
         lateness = {}
         if self.policy is not None:
             for key, name in zip(keys, names, strict=True):
-                when = submission_time(Path(key), relative[name], self.times)
+                if self.times is None and name in self.modified:
+                    when = self.modified[name]
+                else:
+                    when = submission_time(Path(key), relative[name], self.times)
                 lateness[name] = self.policy.lateness(when)
         return Context(roster=roster, lateness=lateness, overrides=self.overrides)
 
