@@ -1,9 +1,9 @@
 """One batch's outputs: the autograded results joined with the course's roster, late policy
-and manual overrides, written as the gradebook, feedback and LMS exports.
+and manual overrides, written as the gradebook, feedback, LMS exports and class report.
 
 :class:`Course` is what ``robolab grade`` publishes after every finished submission
 (gradebook and that submission's feedback) and at the end (all feedback, stale
-feedback removed, exports).
+feedback removed, exports, the class report ``report.html``).
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from robolab.grading.batch import BatchState, atomic_write, relative_paths
+from robolab.grading.class_report import write_class_report
 from robolab.grading.late import LatePolicy, submission_time
 from robolab.grading.lms import write_export
 from robolab.grading.overrides import Override, read_overrides
@@ -109,14 +110,16 @@ class Course:
             return {}
         write_feedback(results, self.out, context)
         remove_stale_feedback(self.out, [r.name for r in results])
-        if not final or self.students is None:
+        if not final:
             return {}
         rows = gradebook_rows(results, context)
+        written = {"class report": write_class_report(results, rows, self.out)}
+        if self.students is None:
+            return written
         assignment = self.assignment or ", ".join(sorted({r.lab for r in results if r.lab}))
-        return {
-            kind: write_export(kind, rows, self.students, assignment or "robolab", self.out)
-            for kind in self.exports
-        }
+        for kind in self.exports:
+            written[kind] = write_export(kind, rows, self.students, assignment or "robolab", self.out)
+        return written
 
     def summary(self, results: Sequence[SubmissionResult]) -> str:
         """The summary table of ``results``, then what the instructor must look at."""
