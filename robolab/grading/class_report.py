@@ -58,7 +58,8 @@ def failed_checks(results: Sequence[SubmissionResult]) -> list[dict]:
     -------
     list of dict
         ``{"lab", "exercise", "title", "points", "failed", "graded"}``: ``failed`` of the
-        ``graded`` submissions of that lab that ran the check did not pass it.
+        ``graded`` submissions of that lab that ran the check did not pass it. Ordered by
+        the share that failed, then the points the check is worth.
     """
     failed: Counter = Counter()
     graded: Counter = Counter()
@@ -81,7 +82,10 @@ def failed_checks(results: Sequence[SubmissionResult]) -> list[dict]:
         for (lab, exercise, node), n in failed.items()
         if n
     ]
-    return sorted(rows, key=lambda r: (-r["failed"] / r["graded"], -r["failed"], r["title"]))
+    # most often failed first; among equals, the one that costs more points
+    return sorted(
+        rows, key=lambda r: (-r["failed"] / r["graded"], -r["failed"], -r["points"], r["title"])
+    )
 
 
 def _png(fig) -> str:
