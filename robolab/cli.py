@@ -159,6 +159,18 @@ def _build_parser() -> argparse.ArgumentParser:
     m.add_argument("--out", type=Path, required=True, help="folder for the merged outputs")
     _course_options(m)
 
+    sim = sub.add_parser(
+        "similarity", help="compare submissions' exercise code, pair by pair (never runs it)"
+    )
+    sim.add_argument("notebooks", nargs="+", type=Path, help="submitted .ipynb files")
+    sim.add_argument(
+        "--out", type=Path, required=True, help="folder for similarity.csv and similarity.html"
+    )
+    sim.add_argument(
+        "--show", type=_positive_int, default=25, metavar="N",
+        help="closest pairs shown side by side in similarity.html (default 25)",
+    )
+
     c = sub.add_parser("check", help="run a notebook's visible checks (for students)")
     c.add_argument("notebook", type=Path)
 
@@ -211,6 +223,8 @@ def _dispatch(args) -> int:
         return commands.merge(
             args.shards, exports=args.export, **{k: getattr(args, k) for k in options}
         )
+    if args.command == "similarity":
+        return commands.similarity(args.notebooks, out=args.out, shown=args.show)
     if args.command == "check":
         return commands.check(args.notebook)
     if args.command == "solve":

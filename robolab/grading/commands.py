@@ -20,7 +20,7 @@ from pathlib import Path
 
 from robolab.grading.labs import LabError, find_lab
 
-__all__ = ["check", "data", "grade", "gradescope", "merge", "release", "solve"]
+__all__ = ["check", "data", "grade", "gradescope", "merge", "release", "similarity", "solve"]
 
 #: Exit code when a command could not do its job (as opposed to a low score).
 FAILED = 2
@@ -229,6 +229,36 @@ def merge(
     print(f"merged {len(parts)} shard(s): {len(results)} submission(s)")
     print(course.summary(results))
     _print_outputs(out, written)
+    return 0
+
+
+def similarity(notebooks: Sequence[Path], *, out: Path, shown: int = 25) -> int:
+    """Compare the submissions' exercise code (``robolab similarity``); see
+    :mod:`~robolab.grading.similarity`. Never runs a notebook."""
+    if importlib.util.find_spec("copydetect") is None:
+        return _error(
+            "robolab similarity needs copydetect: pip install 'robolab[instructor]' "
+            "(or pip install copydetect)"
+        )
+    missing = [p for p in notebooks if not Path(p).is_file()]
+    if missing:
+        return _error(f"no such notebook: {_shown(missing[0])}")
+    if len(notebooks) < 2:
+        return _error("give at least two notebooks to compare")
+    try:
+        _output_folder(out, "--out")
+    except ValueError as exc:
+        return _error(str(exc))
+    from robolab.grading.similarity import similarity_report
+
+    pairs = similarity_report([Path(p) for p in notebooks], Path(out), shown=shown)
+    close = [p for p in pairs if p.score >= 0.8]
+    print(
+        f"{len(pairs)} pair(s) of exercise code compared; {len(close)} at least 0.8 similar"
+        + "".join(f"\n  {p.score:.2f}  {p.exercise}: {p.a} ~ {p.b}" for p in close[:10])
+    )
+    print(f"similarity: {_shown(Path(out) / 'similarity.csv')} and "
+          f"{_shown(Path(out) / 'similarity.html')}")
     return 0
 
 
