@@ -43,7 +43,7 @@ __all__ = ["Fragment", "Pair", "compare", "fragments", "similarity_report"]
 #: k-gram length in characters of tokenized code (copydetect's "noise threshold"): a
 #: match shorter than about one statement is not counted.
 K = 25
-_NAME = "fragment.py"  # copydetect picks its pygments lexer from the file name
+_NAME = "fragment.py"  # shown by copydetect; the lexer is named (a look-up by name is slow)
 
 
 @dataclass
@@ -127,7 +127,7 @@ def _fragment_code(
 
     reached = _reached(name, functions, exercises)
     canonical = [_canonical(functions[f]) for f in reached]
-    helpers = sorted(canonical[1:], key=lambda c: filter_code(c, _NAME)[0])
+    helpers = sorted(canonical[1:], key=lambda c: filter_code(c, _NAME, "python")[0])
     written = "\n\n".join(ast.get_source_segment(source[f], functions[f]) or "" for f in reached)
     return written, "\n\n".join(canonical[:1] + helpers)
 
@@ -145,7 +145,9 @@ def _fingerprint(code: str, boilerplate=None):
 
     # win_size=1 keeps every k-gram: the selection does not depend on Python's
     # per-process string hashes, so the scores are the same on every run
-    return CodeFingerprint(_NAME, K, 1, boilerplate=boilerplate, fp=io.StringIO(code))
+    return CodeFingerprint(
+        _NAME, K, 1, boilerplate=boilerplate, language="python", fp=io.StringIO(code)
+    )
 
 
 @functools.lru_cache(maxsize=None)
