@@ -122,8 +122,9 @@ class Box:
 
 def _clean_env(**extra) -> dict:
     """This environment without this venv: setup.sh builds the bundle's own."""
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME")}
+    env = {
+        k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH", "PYTHONHOME")
+    }
     env["PATH"] = os.pathsep.join(
         p for p in env.get("PATH", "").split(os.pathsep) if not p.startswith(sys.prefix)
     )
@@ -141,8 +142,14 @@ def _autograder(lab: str, home: Path) -> Path:
         (home / "source" / script).chmod(0o755)
     shutil.copy(home / "source" / "run_autograder", home / "run_autograder")
     env = _clean_env(ROBOLAB_AUTOGRADER_DIR=str(home), ROBOLAB_SETUP_PYTHON=sys._base_executable)
-    done = subprocess.run(["bash", str(home / "source" / "setup.sh")], env=env, cwd=home,
-                          capture_output=True, text=True, timeout=1800)
+    done = subprocess.run(
+        ["bash", str(home / "source" / "setup.sh")],
+        env=env,
+        cwd=home,
+        capture_output=True,
+        text=True,
+        timeout=1800,
+    )
     if done.returncode != 0:
         raise SystemExit(f"setup.sh failed for {lab}:\n{done.stdout[-2000:]}{done.stderr[-2000:]}")
     (home / "submission").mkdir()
@@ -160,8 +167,13 @@ def measure(lab: str, memory_mb: int, cpus: float) -> dict:
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         started = time.monotonic()
         proc = subprocess.Popen(
-            ["bash", str(home / "run_autograder")], env=env, cwd=home, preexec_fn=box.enter,
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+            ["bash", str(home / "run_autograder")],
+            env=env,
+            cwd=home,
+            preexec_fn=box.enter,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
         )
         peak_rss = 0
         done = threading.Event()
@@ -207,7 +219,10 @@ def main() -> int:
     p.add_argument("--check", action="store_true", help="exit 1 unless every lab fits and scores")
     args = p.parse_args()
     print(f"load before: {os.getloadavg()[0]:.2f}; box: {args.memory} MB, {args.cpus} CPU")
-    print(f"{'lab':<12} {'score':>9} {'wall s':>7} {'CPU s':>6} {'tree RSS MB':>12} {'cgroup peak MB':>15}")
+    print(
+        f"{'lab':<12} {'score':>9} {'wall s':>7} {'CPU s':>6} {'tree RSS MB':>12} "
+        f"{'cgroup peak MB':>15}"
+    )
     failed = False
     for lab in args.labs:
         r = measure(lab, args.memory, args.cpus)

@@ -87,8 +87,19 @@ def main() -> int:
         started = time.monotonic()
         procs = [
             subprocess.Popen(
-                [*ROBOLAB, "grade", *names, "--shard", f"{k}/{args.shards}", "--out",
-                 f"shard-{k}", "-j", "1"], cwd=mixed, stdout=subprocess.DEVNULL,
+                [
+                    *ROBOLAB,
+                    "grade",
+                    *names,
+                    "--shard",
+                    f"{k}/{args.shards}",
+                    "--out",
+                    f"shard-{k}",
+                    "-j",
+                    "1",
+                ],
+                cwd=mixed,
+                stdout=subprocess.DEVNULL,
                 stderr=subprocess.DEVNULL,
             )
             for k in range(1, args.shards + 1)
@@ -99,8 +110,9 @@ def main() -> int:
         wall_n = time.monotonic() - started
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpu_n = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
-        _run(["merge", *(f"shard-{k}" for k in range(1, args.shards + 1)), "--out", "merged"],
-             mixed)
+        _run(
+            ["merge", *(f"shard-{k}" for k in range(1, args.shards + 1)), "--out", "merged"], mixed
+        )
         same = _rows(mixed / "whole") == _rows(mixed / "merged")
         print(
             f"\nmixed batch of {len(names)}: unsharded -j 1 {wall1:.1f} s wall, {cpu1:.1f} s CPU; "

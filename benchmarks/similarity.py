@@ -62,7 +62,7 @@ def main() -> int:
         sub = [f for f in found if f.submission < f"student{args.baseline:04d}"]
         started = time.perf_counter()
         for i, a in enumerate(sub):
-            for b in sub[i + 1:]:
+            for b in sub[i + 1 :]:
                 if a.exercise == b.exercise:
                     compare_files(a.fingerprint, b.fingerprint)
         t_pairwise = time.perf_counter() - started

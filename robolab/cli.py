@@ -167,7 +167,10 @@ def _build_parser() -> argparse.ArgumentParser:
         "--out", type=Path, required=True, help="folder for similarity.csv and similarity.html"
     )
     sim.add_argument(
-        "--show", type=_positive_int, default=25, metavar="N",
+        "--show",
+        type=_positive_int,
+        default=25,
+        metavar="N",
         help="closest pairs shown side by side in similarity.html (default 25)",
     )
 

@@ -122,9 +122,17 @@ def _figures(lab_rows: list[dict]) -> str:
     _histogram(axes[0, 0], finals, top, f"final points (of {_pts(top)})")
     for ax, exercise in zip(axes.flat[1:], exercises, strict=False):
         earned = np.array(
-            [row["exercises"][exercise]["earned"] for row in lab_rows if exercise in row["exercises"]]
+            [
+                row["exercises"][exercise]["earned"]
+                for row in lab_rows
+                if exercise in row["exercises"]
+            ]
         )
-        possible = max(row["exercises"][exercise]["possible"] for row in lab_rows if exercise in row["exercises"])
+        possible = max(
+            row["exercises"][exercise]["possible"]
+            for row in lab_rows
+            if exercise in row["exercises"]
+        )
         _histogram(ax, earned, possible, f"{exercise} (of {_pts(possible)})")
     for ax in axes.flat[panels:]:
         ax.set_visible(False)
@@ -140,7 +148,9 @@ def _flagged(rows: Sequence[dict]) -> list[tuple[dict, list[str]]]:
     for row in rows:
         reasons = list(row["flags"])
         if row["days_late"]:
-            reasons.append(f"late: {row['days_late']} day(s), -{_pts(row['late_penalty_percent'])}%")
+            reasons.append(
+                f"late: {row['days_late']} day(s), -{_pts(row['late_penalty_percent'])}%"
+            )
         if row.get("isolation"):
             reasons.append(f"isolation: {row['isolation']}")
         reasons += [f"error: {e.splitlines()[0] if e.strip() else e}" for e in row["errors"]]
@@ -231,8 +241,10 @@ def render_class_report(results: Sequence[SubmissionResult], rows: Sequence[dict
     if not flagged:
         parts.append('<p class="muted">None.</p>')
     else:
-        parts.append("<table><tr><th>submission</th><th>student</th><th>lab</th>"
-                     "<th>final</th><th>why</th></tr>")
+        parts.append(
+            "<table><tr><th>submission</th><th>student</th><th>lab</th>"
+            "<th>final</th><th>why</th></tr>"
+        )
         for row, reasons in flagged:
             who = row["student_name"] or row["student_id"] or ""
             parts.append(

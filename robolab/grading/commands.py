@@ -257,8 +257,10 @@ def similarity(notebooks: Sequence[Path], *, out: Path, shown: int = 25) -> int:
         f"{len(pairs)} pair(s) of exercise code compared; {len(close)} at least 0.8 similar"
         + "".join(f"\n  {p.score:.2f}  {p.exercise}: {p.a} ~ {p.b}" for p in close[:10])
     )
-    print(f"similarity: {_shown(Path(out) / 'similarity.csv')} and "
-          f"{_shown(Path(out) / 'similarity.html')}")
+    print(
+        f"similarity: {_shown(Path(out) / 'similarity.csv')} and "
+        f"{_shown(Path(out) / 'similarity.html')}"
+    )
     return 0
 
 

@@ -118,7 +118,9 @@ class Course:
             return written
         assignment = self.assignment or ", ".join(sorted({r.lab for r in results if r.lab}))
         for kind in self.exports:
-            written[kind] = write_export(kind, rows, self.students, assignment or "robolab", self.out)
+            written[kind] = write_export(
+                kind, rows, self.students, assignment or "robolab", self.out
+            )
         return written
 
     def summary(self, results: Sequence[SubmissionResult]) -> str:

@@ -74,7 +74,10 @@ def _check(shards: list[ShardOutput]) -> None:
     problems = []
     first = shards[0]
     for s in shards[1:]:
-        if (s.manifest["batch"], s.manifest["of"]) != (first.manifest["batch"], first.manifest["of"]):
+        if (s.manifest["batch"], s.manifest["of"]) != (
+            first.manifest["batch"],
+            first.manifest["of"],
+        ):
             problems.append(
                 f"{s.label} and {first.label} were cut from different batches (another file "
                 "list, changed files, or another N): grade every shard from the same files "
@@ -128,9 +131,7 @@ def _check(shards: list[ShardOutput]) -> None:
         raise MergeError("\n".join(dict.fromkeys(problems)))
 
 
-def merged_state(
-    shards: list[ShardOutput], out: Path
-) -> tuple[BatchState, dict[str, datetime]]:
+def merged_state(shards: list[ShardOutput], out: Path) -> tuple[BatchState, dict[str, datetime]]:
     """The union of the shards' results as a batch state of ``out`` (not saved), and each
     submission's modification time as the shard saw it (for the late policy).
 

@@ -111,8 +111,12 @@ def _canonical(node: ast.FunctionDef) -> str:
 
     node = copy.deepcopy(node)
     body = node.body
-    if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
-            and isinstance(body[0].value.value, str):
+    if (
+        body
+        and isinstance(body[0], ast.Expr)
+        and isinstance(body[0].value, ast.Constant)
+        and isinstance(body[0].value.value, str)
+    ):
         node.body = body[1:] or [ast.Pass()]
     return ast.unparse(node)
 
@@ -134,8 +138,11 @@ def _fragment_code(
 
 def _given_code(nb: dict) -> str:
     """All code of the lab's stub notebook, as written and in canonical form."""
-    cells = [to_python(_text(c.get("source", ""))) for c in nb.get("cells", [])
-             if isinstance(c, dict) and c.get("cell_type") == "code"]
+    cells = [
+        to_python(_text(c.get("source", "")))
+        for c in nb.get("cells", [])
+        if isinstance(c, dict) and c.get("cell_type") == "code"
+    ]
     functions, _ = _functions(nb)
     return "\n\n".join([c for c in cells if c] + [_canonical(f) for f in functions.values()])
 
@@ -182,15 +189,21 @@ def fragments(paths: Sequence[Path], root: Path | None = None) -> list[Fragment]
         lab = (nb.get("metadata", {}).get("robolab") or {}).get("lab")
         exercises = lab_exercises(lab) if isinstance(lab, str) else ()
         if not exercises:
-            print(f"robolab similarity: skipped {display_path(path)}: it names no known lab",
-                  file=sys.stderr)
+            print(
+                f"robolab similarity: skipped {display_path(path)}: it names no known lab",
+                file=sys.stderr,
+            )
             continue
         functions, source = _functions(nb)
         for exercise in exercises:
             code, canonical = _fragment_code(exercise, functions, source, set(exercises))
             found.append(
                 Fragment(
-                    name, lab, exercise, code, canonical,
+                    name,
+                    lab,
+                    exercise,
+                    code,
+                    canonical,
                     _fingerprint(canonical, _boilerplate(lab, root)),
                 )
             )

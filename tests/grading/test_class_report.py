@@ -37,8 +37,15 @@ def _result(name, passes, *, lab="bayes", flags=(), errors=(), isolation=""):
         _test("alpha", 1, 20, passes[1]),
         _test("beta", 0, 70, passes[2]),
     ]
-    return SubmissionResult(Path(f"{name}.ipynb"), name, lab, tests, flags=list(flags),
-                            errors=list(errors), isolation=isolation)
+    return SubmissionResult(
+        Path(f"{name}.ipynb"),
+        name,
+        lab,
+        tests,
+        flags=list(flags),
+        errors=list(errors),
+        isolation=isolation,
+    )
 
 
 @pytest.fixture
@@ -107,13 +114,19 @@ def test_report_shows_distributions_checks_and_flags(batch):
 @pytest.mark.parametrize("where", ["name", "lab", "flag", "error", "title", "isolation"])
 def test_student_derived_text_cannot_inject_html(where):
     evil = EVIL + where
-    kwargs = {"flags": [evil]} if where == "flag" else {"errors": [evil]} if where == "error" else {}
+    kwargs = (
+        {"flags": [evil]} if where == "flag" else {"errors": [evil]} if where == "error" else {}
+    )
     if where == "isolation":
         kwargs = {"isolation": evil}
     if where == "name":  # a name is shown where the submission is flagged
         kwargs = {"flags": ["lab missing"]}
-    r = _result(evil if where == "name" else "ann", (False, True, True),
-                lab=evil if where == "lab" else "bayes", **kwargs)
+    r = _result(
+        evil if where == "name" else "ann",
+        (False, True, True),
+        lab=evil if where == "lab" else "bayes",
+        **kwargs,
+    )
     if where == "title":
         r.tests[0] = _test("alpha", 0, 10, False, description=f"alpha: {evil}")
     page = render_class_report([r], gradebook_rows([r]))

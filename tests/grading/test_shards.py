@@ -33,8 +33,14 @@ SCRIPT = REPO / "deploy" / "grade-shard.sh"
 
 @pytest.mark.parametrize(
     "text, why",
-    [("0/3", "between 1 and N"), ("4/3", "between 1 and N"), ("1/0", "at least 1"),
-     ("a/b", "expected K/N"), ("3", "expected K/N"), ("-1/3", "expected K/N")],
+    [
+        ("0/3", "between 1 and N"),
+        ("4/3", "between 1 and N"),
+        ("1/0", "at least 1"),
+        ("a/b", "expected K/N"),
+        ("3", "expected K/N"),
+        ("-1/3", "expected K/N"),
+    ],
 )
 def test_bad_shard_is_refused_naming_the_option(text, why):
     with pytest.raises(ValueError, match=why) as exc:
@@ -106,8 +112,18 @@ def test_more_shards_than_submissions_leaves_empty_slices():
 # -- end to end: the recipe's script as N processes, merged, against one run ----------------
 
 COURSE_OPTIONS = [
-    "--roster", "roster.csv", "--due", "2026-03-01T23:59:00+00:00", "--late-penalty", "10",
-    "--overrides", "overrides.csv", "--export", "canvas", "--export", "moodle",
+    "--roster",
+    "roster.csv",
+    "--due",
+    "2026-03-01T23:59:00+00:00",
+    "--late-penalty",
+    "10",
+    "--overrides",
+    "overrides.csv",
+    "--export",
+    "canvas",
+    "--export",
+    "moodle",
 ]
 
 
@@ -145,8 +161,18 @@ def graded(tmp_path_factory):
     cwd = os.getcwd()
     os.chdir(whole)
     try:
-        assert main(["grade", *sorted(str(p.relative_to(whole)) for p in (whole / "subs").iterdir()),
-                     "--out", "grades", *COURSE_OPTIONS]) == 0
+        assert (
+            main(
+                [
+                    "grade",
+                    *sorted(str(p.relative_to(whole)) for p in (whole / "subs").iterdir()),
+                    "--out",
+                    "grades",
+                    *COURSE_OPTIONS,
+                ]
+            )
+            == 0
+        )
     finally:
         os.chdir(cwd)
     nodes, procs = [], []
@@ -155,17 +181,24 @@ def graded(tmp_path_factory):
         node = base / f"node {k}" / "mnt"  # another absolute prefix on every node
         node.mkdir(parents=True)
         shutil.copytree(whole / "subs", node / "subs")  # copy2: modification times kept
-        env = dict(os.environ, SHARDS="3", SUBMISSIONS="subs", GRADES=str(base / "grades"),
-                   ROBOLAB=robolab)
+        env = dict(
+            os.environ, SHARDS="3", SUBMISSIONS="subs", GRADES=str(base / "grades"), ROBOLAB=robolab
+        )
         env.pop("JOB_COMPLETION_INDEX", None)
         env.pop("SLURM_ARRAY_TASK_ID", None)
         # each scheduler's way of saying which slice this is
         how = [{"JOB_COMPLETION_INDEX": "0"}, {"SLURM_ARRAY_TASK_ID": "2"}, {}][k - 1]
         args = [] if how else ["3"]
-        procs.append(subprocess.Popen(
-            ["sh", str(SCRIPT), *args], cwd=node, env={**env, **how},
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        ))
+        procs.append(
+            subprocess.Popen(
+                ["sh", str(SCRIPT), *args],
+                cwd=node,
+                env={**env, **how},
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+        )
         nodes.append(node)
     for p in procs:
         out, err = p.communicate(timeout=600)
@@ -284,8 +317,16 @@ def test_shard_option_errors_are_one_line(tmp_path, capsys):
 
 
 def test_the_recipe_script_needs_a_slice(tmp_path):
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("JOB_COMPLETION_INDEX", "SLURM_ARRAY_TASK_ID")}
-    done = subprocess.run(["sh", str(SCRIPT)], env={**env, "SHARDS": "2"}, cwd=tmp_path,
-                          capture_output=True, text=True)
+    env = {
+        k: v
+        for k, v in os.environ.items()
+        if k not in ("JOB_COMPLETION_INDEX", "SLURM_ARRAY_TASK_ID")
+    }
+    done = subprocess.run(
+        ["sh", str(SCRIPT)],
+        env={**env, "SHARDS": "2"},
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
     assert done.returncode == 2 and "no slice" in done.stderr

@@ -74,7 +74,7 @@ def bayes_filter_step(belief, action_model, measurement_likelihood):
     return bayes_posterior(measurement_likelihood, predicted)
 '''
 
-LOOPS = '''
+LOOPS = """
 from fractions import Fraction
 
 
@@ -120,7 +120,7 @@ def bayes_filter_step(belief, action_model, measurement_likelihood):
         for j in range(n):
             bel_bar[i] += rows[i][j] * belief[j]
     return bayes_posterior(measurement_likelihood, bel_bar)
-'''
+"""
 
 
 class _Rename(ast.NodeTransformer):
@@ -150,7 +150,9 @@ def disguise(code: str) -> str:
     """Renamed variables and helpers, functions in reverse order, other comments and
     docstrings, another layout; the exercise functions keep their names (the contract)."""
     tree = ast.parse(code)
-    bound = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
+    bound = {
+        n.id for n in ast.walk(tree) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)
+    }
     bound |= {a.arg for a in ast.walk(tree) if isinstance(a, ast.arg)}
     bound |= {f.name for f in ast.walk(tree) if isinstance(f, ast.FunctionDef)}
     bound -= set(EXERCISES) | set(dir(builtins))
@@ -202,13 +204,17 @@ def test_the_disguise_changes_the_text_but_not_the_logic():
     exec(disguise(VECTORIZED), ns_b)
     assert disguise(VECTORIZED) != VECTORIZED and "_normalized" not in disguise(VECTORIZED)
     assert "predicted" not in disguise(VECTORIZED) and "def q" in disguise(VECTORIZED)
-    assert np.allclose(ns_a["bayes_posterior"]([0.6, 0.2], [0.5, 0.5]),
-                       ns_b["bayes_posterior"]([0.6, 0.2], [0.5, 0.5]))
+    assert np.allclose(
+        ns_a["bayes_posterior"]([0.6, 0.2], [0.5, 0.5]),
+        ns_b["bayes_posterior"]([0.6, 0.2], [0.5, 0.5]),
+    )
     assert ns_a["door_open_posterior"](2 / 3, 1 / 3, 3 / 5) == pytest.approx(0.75)
     assert ns_b["door_open_posterior"](2 / 3, 1 / 3, 3 / 5) == pytest.approx(0.75)
     push = [[1, 0.8], [0, 0.2]]
-    assert np.allclose(ns_a["bayes_filter_step"]([0.5, 0.5], push, [0.6, 0.2]),
-                       ns_b["bayes_filter_step"]([0.5, 0.5], push, [0.6, 0.2]))
+    assert np.allclose(
+        ns_a["bayes_filter_step"]([0.5, 0.5], push, [0.6, 0.2]),
+        ns_b["bayes_filter_step"]([0.5, 0.5], push, [0.6, 0.2]),
+    )
 
 
 def test_disguised_copies_rank_above_independent_solutions(batch):
@@ -238,7 +244,7 @@ def test_untouched_stubs_are_not_similar(batch):
 
 
 def test_command_writes_ranked_csv_and_a_safe_page(batch, tmp_path, capsys):
-    evil = batch[0].with_name('x<script>alert(1)<-script>.ipynb')
+    evil = batch[0].with_name("x<script>alert(1)<-script>.ipynb")
     code = VECTORIZED.replace("# Bayes' rule", "# </pre><script>alert('pwned')</script>")
     notebook(evil, code)
     assert main(["similarity", *map(str, batch), str(evil), "--out", str(tmp_path / "sim")]) == 0
