@@ -132,8 +132,11 @@ def _clean_env(**extra) -> dict:
 
 
 def _autograder(lab: str, home: Path) -> Path:
-    """An /autograder-shaped tree for ``lab`` after Gradescope's setup.sh ran in it (a fresh
-    venv: a minute or two with a warm pip cache), with the correct example submitted."""
+    """``home`` as /autograder for ``lab`` after Gradescope's setup.sh ran in it, with the
+    lab's correct example submitted. The venv is made by the first lab's setup.sh (minutes)
+    and reused by the next ones', which then only reinstall robolab from the new bundle."""
+    for old in ("source", "submission", "results"):
+        shutil.rmtree(home / old, ignore_errors=True)
     bundle = home.parent / "autograder.zip"
     build_bundle(lab, bundle, options=BundleOptions())
     with zipfile.ZipFile(bundle) as zf:
@@ -158,57 +161,55 @@ def _autograder(lab: str, home: Path) -> Path:
     return home
 
 
-def measure(lab: str, memory_mb: int, cpus: float) -> dict:
-    with tempfile.TemporaryDirectory(prefix=f"gs-{lab}-", dir="/tmp") as tmp:
-        os.chmod(tmp, 0o755)  # the worker's uid reaches the venv, as in the container
-        home = _autograder(lab, Path(tmp) / "autograder")
-        env = _clean_env(ROBOLAB_AUTOGRADER_DIR=str(home))
-        box = Box(f"robolab-gs-{os.getpid()}-{lab}", memory_mb, cpus)
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        started = time.monotonic()
-        proc = subprocess.Popen(
-            ["bash", str(home / "run_autograder")],
-            env=env,
-            cwd=home,
-            preexec_fn=box.enter,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-        )
-        peak_rss = 0
-        done = threading.Event()
+def measure(lab: str, memory_mb: int, cpus: float, home: Path) -> dict:
+    _autograder(lab, home)
+    env = _clean_env(ROBOLAB_AUTOGRADER_DIR=str(home))
+    box = Box(f"robolab-gs-{os.getpid()}-{lab}", memory_mb, cpus)
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    started = time.monotonic()
+    proc = subprocess.Popen(
+        ["bash", str(home / "run_autograder")],
+        env=env,
+        cwd=home,
+        preexec_fn=box.enter,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    peak_rss = 0
+    done = threading.Event()
 
-        def sample():
-            nonlocal peak_rss
-            while not done.is_set():
-                peak_rss = max(peak_rss, _tree_rss(proc.pid))
-                time.sleep(0.02)
+    def sample():
+        nonlocal peak_rss
+        while not done.is_set():
+            peak_rss = max(peak_rss, _tree_rss(proc.pid))
+            time.sleep(0.02)
 
-        sampler = threading.Thread(target=sample, daemon=True)
-        sampler.start()
-        output, _ = proc.communicate()
-        done.set()
-        sampler.join()
-        wall = time.monotonic() - started
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        cgroup_peak = box.peak()
-        box.close()
-        try:
-            results = json.loads((home / "results" / "results.json").read_text())
-        except (OSError, ValueError):
-            results = {"score": None, "tests": []}
-        possible = sum(t.get("max_score", 0) for t in results.get("tests", []))
-        return {
-            "lab": lab,
-            "exit": proc.returncode,
-            "score": results.get("score"),
-            "possible": possible,
-            "wall": wall,
-            "cpu": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
-            "tree_rss_mb": peak_rss / 2**20,
-            "cgroup_peak_mb": None if cgroup_peak is None else cgroup_peak / 2**20,
-            "output": output,
-        }
+    sampler = threading.Thread(target=sample, daemon=True)
+    sampler.start()
+    output, _ = proc.communicate()
+    done.set()
+    sampler.join()
+    wall = time.monotonic() - started
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cgroup_peak = box.peak()
+    box.close()
+    try:
+        results = json.loads((home / "results" / "results.json").read_text())
+    except (OSError, ValueError):
+        results = {"score": None, "tests": []}
+    possible = sum(t.get("max_score", 0) for t in results.get("tests", []))
+    return {
+        "lab": lab,
+        "exit": proc.returncode,
+        "score": results.get("score"),
+        "possible": possible,
+        "wall": wall,
+        "cpu": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
+        "tree_rss_mb": peak_rss / 2**20,
+        "cgroup_peak_mb": None if cgroup_peak is None else cgroup_peak / 2**20,
+        "output": output,
+    }
 
 
 def main() -> int:
@@ -224,8 +225,16 @@ def main() -> int:
         f"{'cgroup peak MB':>15}"
     )
     failed = False
-    for lab in args.labs:
-        r = measure(lab, args.memory, args.cpus)
+    tmp = tempfile.mkdtemp(prefix="gs-bench-", dir="/tmp")
+    os.chmod(tmp, 0o755)  # the worker's uid reaches the venv, as in the container
+    home = Path(tmp) / "autograder"
+    home.mkdir()
+    try:
+        rows = [measure(lab, args.memory, args.cpus, home) for lab in args.labs]
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    for r in rows:
+        lab = r["lab"]
         peak = r["cgroup_peak_mb"]
         print(
             f"{lab:<12} {r['score']!s:>5}/{r['possible']:<3g} {r['wall']:7.1f} {r['cpu']:6.1f} "
