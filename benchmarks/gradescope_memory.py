@@ -3,7 +3,7 @@
 Gradescope runs ``run_autograder`` once per submission in a container; measured from
 outside, grading the MCL, beam-model and Bayes labs peaked at 323 MB and scored 100 with
 384 MB and half a CPU. This benchmark keeps that true. For each lab it builds the
-autograder bundle (``robolab.grading.gradescope.build_bundle``), lays it out as
+autograder bundle (``robolab.grading.exports.gradescope.build_bundle``), lays it out as
 ``/autograder`` (``source/``, ``submission/``, ``results/``), runs its ``setup.sh`` (a
 fresh venv, the answers made root-only), and runs the bundle's own ``run_autograder`` on the lab's
 correct example submission, after the bundle's ``setup.sh`` built its venv:
@@ -38,7 +38,7 @@ import time
 import zipfile
 from pathlib import Path
 
-from robolab.grading.gradescope import BundleOptions, build_bundle
+from robolab.grading.exports.gradescope import BundleOptions, build_bundle
 
 REPO = Path(__file__).resolve().parents[1]
 

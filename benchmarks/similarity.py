@@ -1,7 +1,7 @@
 """How fast ``robolab similarity`` compares a class: hundreds of Bayes-lab notebooks.
 
 The class is ``--students`` notebooks made from two genuinely different implementations
-(the ones of tests/grading/test_similarity.py), each student's copy disguised or not and
+(the ones of tests/grading/course/test_similarity.py), each student's copy disguised or not and
 given a line of its own in every function, so that no two are identical. The baseline,
 in the same run, is copydetect's own way: ``compare_files`` on every pair, timed on the
 first ``--baseline`` students and scaled by the number of pairs.
@@ -22,8 +22,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from robolab.grading.similarity import compare, fragments, similarity_report  # noqa: E402
-from tests.grading.test_similarity import LOOPS, VECTORIZED, disguise, notebook  # noqa: E402
+from robolab.grading.course.similarity import compare, fragments, similarity_report  # noqa: E402
+from tests.grading.course.test_similarity import LOOPS, VECTORIZED, disguise, notebook  # noqa: E402
 
 
 def _own_line(code: str, i: int) -> str:

@@ -588,8 +588,8 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
         The map's geometry.
     inverse_sensor_model_params : dict
         ``l_occ``, ``l_free``, ``l_0`` (log-odds), ``alpha`` (obstacle thickness,
-        metres, > 0), ``beta`` (beam width, radians, > 0); see
-        :data:`INVERSE_SENSOR_MODEL`.
+        metres, > 0), ``beta`` (beam width, radians, > 0); the notebook's
+        ``PARAMS`` below is an example.
 
     Returns
     -------

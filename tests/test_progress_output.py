@@ -7,7 +7,7 @@ import pytest
 from nbclient import NotebookClient
 
 CELL = """
-from robolab.plotting import mcl
+from robolab.plotting import mcl_runs as mcl
 for _ in mcl.tqdm(range(400), desc="scans", mininterval=0):
     pass
 """
