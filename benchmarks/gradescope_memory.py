@@ -199,6 +199,11 @@ def measure(lab: str, memory_mb: int, cpus: float, home: Path) -> dict:
     except (OSError, ValueError):
         results = {"score": None, "tests": []}
     possible = sum(t.get("max_score", 0) for t in results.get("tests", []))
+    lost = [
+        f"{t.get('name')}: {str(t.get('output', ''))[:300]}"
+        for t in results.get("tests", [])
+        if t.get("score", 0) < t.get("max_score", 0)
+    ]
     return {
         "lab": lab,
         "exit": proc.returncode,
@@ -208,7 +213,7 @@ def measure(lab: str, memory_mb: int, cpus: float, home: Path) -> dict:
         "cpu": (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime),
         "tree_rss_mb": peak_rss / 2**20,
         "cgroup_peak_mb": None if cgroup_peak is None else cgroup_peak / 2**20,
-        "output": output,
+        "output": output + "".join(f"\nlost: {line}" for line in lost),
     }
 
 
