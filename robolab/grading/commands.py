@@ -31,6 +31,19 @@ def _error(message: str) -> int:
     return FAILED
 
 
+#: The course options of grade and merge, and their defaults.
+_COURSE_DEFAULTS = {
+    "roster": None,
+    "overrides": None,
+    "exports": (),
+    "assignment": None,
+    "due": None,
+    "late_penalty": 0.0,
+    "late_cap": 100.0,
+    "submitted_times": None,
+}
+
+
 def _course_inputs(
     roster: Path | None,
     overrides: Path | None,
@@ -192,32 +205,34 @@ def _print_outputs(out: Path, written: dict[str, Path]) -> None:
     )
 
 
-def merge(
-    shards: Sequence[Path],
-    *,
-    out: Path,
-    roster: Path | None = None,
-    overrides: Path | None = None,
-    exports: Sequence[str] = (),
-    assignment: str | None = None,
-    due: str | None = None,
-    late_penalty: float = 0.0,
-    late_cap: float = 100.0,
-    submitted_times: Path | None = None,
-) -> int:
+def merge(shards: Sequence[Path], *, out: Path, **course) -> int:
     """Merge the output folders of ``robolab grade --shard K/N`` into ``out``.
 
     ``out`` gets what one unsharded ``robolab grade`` of the same files with the same
     course options writes (gradebook, feedback, exports, class report); see
-    :mod:`~robolab.grading.course.merge`. Exit 0, or 2 when the shards cannot be merged.
+    :mod:`~robolab.grading.course.merge`. ``course`` takes :func:`grade`'s course
+    options (``roster``, ``overrides``, ``exports``, ``assignment``, ``due``,
+    ``late_penalty``, ``late_cap``, ``submitted_times``). Exit 0, or 2 when the shards
+    cannot be merged.
     """
     from robolab.grading.course.batch import BatchError, prepare_out
     from robolab.grading.course.merge import merged_state, read_shards
     from robolab.grading.course.outputs import Course
 
+    unknown = set(course) - set(_COURSE_DEFAULTS)
+    if unknown:
+        raise TypeError(f"merge() got unexpected course options {sorted(unknown)}")
+    c = {**_COURSE_DEFAULTS, **course}
+    overrides, exports, assignment = c["overrides"], c["exports"], c["assignment"]
     try:
         inputs = _course_inputs(
-            roster, overrides, due, late_penalty, late_cap, submitted_times, exports
+            c["roster"],
+            overrides,
+            c["due"],
+            c["late_penalty"],
+            c["late_cap"],
+            c["submitted_times"],
+            exports,
         )
         parts = read_shards(shards)
         state, modified = merged_state(parts, out)
