@@ -13,7 +13,7 @@ COPY tests/ tests/
 COPY notebooks/ notebooks/
 COPY data/ data/
 # editable: robolab finds solutions/, tests/labs/ and data/ beside its package
-RUN pip install -e . "pytest>=8.0" && robolab --version
+RUN pip install -e ".[instructor]" && robolab --version
 COPY deploy/grade-shard.sh /usr/local/bin/grade-shard.sh
 WORKDIR /course
 CMD ["grade-shard.sh"]

@@ -38,7 +38,7 @@
 # %%
 import numpy as np
 import matplotlib.pyplot as plt
-from tqdm.auto import tqdm
+from robolab.progress import progress_bar
 from filterpy.kalman import ExtendedKalmanFilter
 
 from robolab import DATA_DIR
@@ -551,7 +551,7 @@ def run_ekf(step, x0, P0, m0, n=None, R=np.eye(N_BEAMS), snapshots=(), desc="EKF
     # Run `step(ekf, map, v, w, z, dt)` over the data; return states, covariances, final map and snapshots.
     x, P, m = np.array(x0, float), np.array(P0, float), np.array(m0, float)
     states, covs, snaps = np.empty((n, 3)), np.empty((n, 3, 3)), {}
-    for k in tqdm(range(n), desc=desc, leave=False):
+    for k in progress_bar(range(n), desc=desc, leave=False):
         x, P, m = step((x, P, data["process_noise"], R), m, speed[k], rotation_speed[k], scans[k], dt)
         states[k], covs[k] = x, P
         if round((k + 1) * dt, 6) in snapshots:
@@ -663,7 +663,7 @@ def particle_filter(particles, grid, rng, n=None, every=5, sigma_z=1.0, motion_s
     p = np.array(particles, float)
     N = len(p)
     means, clouds = np.empty((n, 3)), {}
-    for k in tqdm(range(n), desc=desc, leave=False):
+    for k in progress_bar(range(n), desc=desc, leave=False):
         v = speed[k] + motion_std[0] * rng.standard_normal(N)
         w = rotation_speed[k] + motion_std[1] * rng.standard_normal(N)
         p = np.column_stack([p[:, 0] + v * np.cos(p[:, 2]) * dt, p[:, 1] + v * np.sin(p[:, 2]) * dt,

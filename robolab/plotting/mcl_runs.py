@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 from scipy import ndimage
-from tqdm.auto import tqdm
 
 from robolab.geometry import angle_diff, compose, relative, wrap_angle
 from robolab.maps import OccupancyGrid, load_map
+from robolab.progress import progress_bar
 from robolab.validation import as_array, as_poses, check_positive
 
 __all__ = [
@@ -112,6 +112,7 @@ def load_localization(
     truth="/ground_truth",
     base_frame: str = "base_link",
     truth_delay: float = 0.0,
+    scan_delay: float = 0.0,
 ) -> LocalizationData:
     """Read ``data/localization.bag`` and ``data/office.yaml`` (or the given files).
 
@@ -119,7 +120,8 @@ def load_localization(
     laser mount comes from ``/tf`` (``laser_pose_in_base``). The topics and message
     types are configurable (:func:`robolab.datasets.rosbag.read_recording`): ``odom``
     and ``truth`` are an Odometry or PoseStamped topic or ``("/tf", parent, child)``.
-    The real Olin Neato bag loads with ``scan_topic="/scan", truth="/map_pose"``.
+    The real Olin Neato bag loads with ``scan_topic="/scan", truth="/map_pose"``;
+    ``truth_delay`` and ``scan_delay`` are :func:`~robolab.datasets.rosbag.read_recording`'s.
     """
     from robolab import DATA_DIR
     from robolab.datasets.rosbag import read_recording
@@ -134,6 +136,7 @@ def load_localization(
         truth=truth,
         base_frame=base_frame,
         truth_delay=truth_delay,
+        scan_delay=scan_delay,
     )
     if rec.truth is None:
         raise ValueError("load_localization needs a ground-truth source (truth=None given)")
@@ -295,7 +298,8 @@ def run_mcl(
     odom_prev = data.odom[idx[0]]
     updates = 0
     est, snapshots = [], {}
-    for k, i in enumerate(tqdm(idx, desc=desc, unit="scan", disable=not progress, leave=False)):
+    bar = progress_bar(idx, desc=desc, unit="scan", disable=not progress, leave=False)
+    for k, i in enumerate(bar):
         prm = {
             **params,
             "laser_pose": data.laser_pose,
@@ -356,7 +360,7 @@ def run_augmented(
     w_slow = w_fast = 0.0
     est, slow, fast = [], [], []
     kidnapped = kidnap_at is None
-    for i in tqdm(idx, desc=desc, unit="scan", disable=not progress, leave=False):
+    for i in progress_bar(idx, desc=desc, unit="scan", disable=not progress, leave=False):
         if not kidnapped and data.t[i] >= kidnap_at:
             # move the whole cloud rigidly so that the current estimate lands on kidnap_to
             target = as_array("kidnap_to", kidnap_to, shape=(3,), finite=True)
@@ -457,7 +461,7 @@ def run_kld(
     end = len(data) if t_end is None else data.index_at(t_end) + 1
     idx = np.arange(0, end, int(every))
     est, counts = [], []
-    for i in tqdm(idx, desc=desc, unit="scan", disable=not progress, leave=False):
+    for i in progress_bar(idx, desc=desc, unit="scan", disable=not progress, leave=False):
         prev = data.odom[max(i - int(every), 0)]
         prm = {
             **params,
