@@ -169,7 +169,7 @@ def grade(
             on_result=finished,
         )
     except BatchInterrupted as exc:
-        course.publish(final=True)
+        course.publish(final=True, report=False)
         print(
             f"robolab: interrupted: {exc.done} of {exc.total} submission(s) graded this run; "
             f"every finished one is saved in {_shown(out)}/ (gradebook.csv is valid). "

@@ -97,10 +97,11 @@ class Course:
         return Context(roster=roster, lateness=lateness, overrides=self.overrides)
 
     def publish(
-        self, changed: SubmissionResult | None = None, *, final: bool = False
+        self, changed: SubmissionResult | None = None, *, final: bool = False, report: bool = True
     ) -> dict[str, Path]:
         """Rewrite the gradebook; write ``changed``'s feedback, or (``final``) every
-        submission's feedback, remove stale feedback and write the exports."""
+        submission's feedback, remove stale feedback and write the exports and (unless
+        ``report`` is False: an interrupted batch stops at once) the class report."""
         results = self.state.results()
         context = self.context()
         write_gradebook(results, self.out, context)
@@ -113,7 +114,7 @@ class Course:
         if not final:
             return {}
         rows = gradebook_rows(results, context)
-        written = {"class report": write_class_report(results, rows, self.out)}
+        written = {"class report": write_class_report(results, rows, self.out)} if report else {}
         if self.students is None:
             return written
         assignment = self.assignment or ", ".join(sorted({r.lab for r in results if r.lab}))
