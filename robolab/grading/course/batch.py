@@ -178,8 +178,9 @@ def grader_fingerprint(lab: str | None, root: Path, timeout: float) -> str:
     import robolab
 
     h = hashlib.sha256(f"{robolab.__version__}\0{lab}\0{timeout!r}".encode())
-    grading = Path(__file__).resolve().parent
-    files = sorted(grading.glob("*.py"))
+    # every module of robolab.grading, in all its sub-packages (not only this one's)
+    grading = Path(__file__).resolve().parents[1]
+    files = sorted(grading.rglob("*.py"), key=lambda f: f.relative_to(grading).as_posix())
     if lab is not None:
         try:
             spec = find_lab(lab, root)
