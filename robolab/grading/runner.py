@@ -88,6 +88,10 @@ class SubmissionResult:
     #: Things the instructor must look at (a lab that differs from the batch's, ...);
     #: shown in the summary and the gradebook, not a grading error.
     flags: list[str] = field(default_factory=list)
+    #: What a time or memory limit cut short (flagged in the gradebook and the summary).
+    limits: list[str] = field(default_factory=list)
+    #: CPU seconds the submission's own processes used (loads and calls, children included).
+    cpu_seconds: float = 0.0
 
     def to_dict(self) -> dict:
         """A JSON-ready copy (the path as text, surrogate escapes kept) for the batch state."""
@@ -321,6 +325,8 @@ def grade_submission(
         log_tail = _tail(log)
 
     if report is None:
+        if code is None:
+            result.limits.append(f"grading stopped at the batch's timeout of {timeout:g} s")
         result.fatal = code is not None
         result.errors.append(
             f"grading timed out after {timeout:g} s"
@@ -329,6 +335,9 @@ def grade_submission(
         )
         return result
     result.problems = list(report.get("problems", []))
+    usage = report.get("usage") or {}
+    result.cpu_seconds = float(usage.get("cpu_seconds", 0.0))
+    result.limits = [str(line) for line in usage.get("limits", [])]
     if report.get("collection_errors") or (code is not None and code not in _RAN):
         result.fatal = True
         result.errors.append(
@@ -341,6 +350,7 @@ def grade_submission(
         result.errors.append(
             f"grading timed out after {timeout:g} s; tests that had not finished earn nothing"
         )
+        result.limits.append(f"grading stopped at the batch's timeout of {timeout:g} s")
     result.tests = [
         TestOutcome(
             nodeid=t["nodeid"],
