@@ -27,6 +27,10 @@ from dataclasses import dataclass, field
 
 __all__ = ["AwakeClock", "GroupClock", "Member", "group_members", "last_pid", "run_delay"]
 
+#: Environment variable naming a file where the proxy appends each worker's pid: the
+#: runner's timeout leaves out the time the workers of its pytest run waited for a CPU.
+WORKER_PIDS_VARIABLE = "ROBOLAB_WORKER_PIDS"
+
 _TICK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
 
 
@@ -105,19 +109,30 @@ class AwakeClock:
     def __init__(self, pid: int) -> None:
         self.pid = pid
         self._last = 0.0  # the last reading (a dead process keeps its last one)
+        self._others: dict[int, list[float]] = {}  # pid: [first reading, last reading]
         self.restart()
 
     def _delay(self) -> float:
         delay = run_delay(self.pid)
         if delay is not None:
             self._last = delay
-        return self._last
+        for pid, readings in self._others.items():
+            if (delay := run_delay(pid)) is not None:
+                readings[1] = delay
+        return self._last + sum(last - first for first, last in self._others.values())
 
     def restart(self) -> None:
         """Count from now."""
         self._wall = time.monotonic()
+        self._others.clear()
         self._base = self._delay()
         self._excused = 0.0
+
+    def watch(self, pid: int) -> None:
+        """Also leave out the time ``pid`` waits for a CPU from now on (a process this one
+        waits for: the grader's pytest run waits for its workers)."""
+        if pid not in self._others and (delay := run_delay(pid)) is not None:
+            self._others[pid] = [delay, delay]
 
     def excuse(self, seconds: float) -> None:
         """Leave ``seconds`` out: the process waited for the reader, who waited for a CPU."""

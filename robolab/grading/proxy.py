@@ -389,6 +389,7 @@ class _Worker:
             for fd in (request_r, response_w, output_w):
                 os.close(fd)
         self.uid = sandbox.worker_uid(self.process.pid) if self.plan.drop_privileges else None
+        _tell_runner(self.process.pid)
         #: CPU time of the worker's whole process group, and the sweep after each call.
         self.clock = processes.GroupClock(self.process.pid)
         #: Wall time of the current request, net of waiting for a CPU (the wall limits).
@@ -610,6 +611,17 @@ def _launch(
         env=env,
         start_new_session=True,  # its own session and process group, killed as a group
     )
+
+
+def _tell_runner(pid: int) -> None:
+    """Append the worker's pid to the runner's file (:data:`processes.WORKER_PIDS_VARIABLE`)."""
+    path = os.environ.get(processes.WORKER_PIDS_VARIABLE)
+    if path:
+        try:
+            with open(path, "a", encoding="ascii") as f:
+                f.write(f"{pid}\n")
+        except OSError:
+            pass  # the runner's timeout then counts this worker's waiting too
 
 
 def _kill_tree(process: subprocess.Popen, uid: int | None) -> None:

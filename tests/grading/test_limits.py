@@ -151,11 +151,13 @@ def test_loading_is_charged_to_the_cpu_budget_and_reloads_too(tmp_path):
             try:
                 sub.crash()
             except (WorkerCrashed, WorkerTimeout) as exc:
-                outcomes.append(str(exc))
+                outcomes.append(exc)
         # 2 s of CPU: the first load and two reloads (1.8 s), then a reload is cut short
         # and every later call is not run: reloads are not free.
-        assert sum("exited" in o or "status 1" in o for o in outcomes) in (2, 3), outcomes
-        assert "total CPU time budget of 2 s" in outcomes[-1] and "not run" in outcomes[-1]
+        crashes = [o for o in outcomes if isinstance(o, WorkerCrashed)]
+        assert len(crashes) in (2, 3) and outcomes[: len(crashes)] == crashes, outcomes
+        assert "total CPU time budget of 2 s" in str(outcomes[-1])
+        assert "not run" in str(outcomes[-1])
         assert sub.spent_cpu_seconds >= 1.8
         assert any("not run" in line for line in sub.limits_hit())
 
@@ -177,5 +179,5 @@ def test_a_limit_that_cut_a_submission_short_is_flagged_in_the_gradebook(tmp_pat
     [row] = json.loads((out / "gradebook.json").read_text())
     assert row["total"] < 100 and row["cpu_seconds"] > 0
     limits = [f for f in row["flags"] if f.startswith("limit: ")]
-    assert limits and all("wrap()" in f for f in limits), row["flags"]
+    assert any(f.startswith("limit: wrap(): timed out") for f in limits), row["flags"]
     assert "FLAG: limit: wrap()" in printed and "FLAGGED: 1 submission(s)" in printed
