@@ -94,6 +94,8 @@ class SubmissionResult:
     limits: list[str] = field(default_factory=list)
     #: CPU seconds the submission's own processes used (loads and calls, children included).
     cpu_seconds: float = 0.0
+    #: Wall seconds of its loads and calls, less the time its worker waited for a CPU.
+    awake_seconds: float = 0.0
 
     def to_dict(self) -> dict:
         """A JSON-ready copy (the path as text, surrogate escapes kept) for the batch state."""
@@ -371,6 +373,7 @@ def grade_submission(
     result.problems = list(report.get("problems", []))
     usage = report.get("usage") or {}
     result.cpu_seconds = float(usage.get("cpu_seconds", 0.0))
+    result.awake_seconds = float(usage.get("awake_seconds", 0.0))
     result.limits = [str(line) for line in usage.get("limits", [])]
     if report.get("collection_errors") or (code is not None and code not in _RAN):
         result.fatal = True

@@ -145,7 +145,7 @@ def test_timeout_keeps_what_finished(root, tmp_path):
     assert "timed out" in result.errors[-1] and not result.fatal
     assert result.exercise_scores()["normalize"] == (40, 40)
     assert result.total == 40
-    assert result.seconds < 15
+    assert result.limits == ["grading stopped at the batch's timeout of 4 s"]
 
 
 def test_unmarked_hidden_test_stops_collection(root, tmp_path):
