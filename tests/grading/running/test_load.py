@@ -9,6 +9,7 @@ catches a hang.
 from __future__ import annotations
 
 import ast
+import contextlib
 import json
 import os
 import signal
@@ -27,22 +28,30 @@ EXAMPLES = REPO / "examples" / "submissions"
 HANG = 900
 
 
+@contextlib.contextmanager
+def busy_loops_running():
+    """One busy loop per core, each in its own session (as independent programs)."""
+    loops = []
+    try:
+        for cpu in sorted(os.sched_getaffinity(0)):
+            proc = subprocess.Popen(
+                [sys.executable, "-c", "while True: pass"],
+                start_new_session=True,
+                stdin=subprocess.DEVNULL,
+            )
+            loops.append(proc)
+            os.sched_setaffinity(proc.pid, {cpu})
+        yield loops
+    finally:
+        for proc in loops:
+            proc.kill()
+            proc.wait()
+
+
 @pytest.fixture
 def busy_loops():
-    """One busy loop per core, each in its own session, for the duration of the test."""
-    loops = []
-    for cpu in sorted(os.sched_getaffinity(0)):
-        proc = subprocess.Popen(
-            [sys.executable, "-c", "while True: pass"],
-            start_new_session=True,
-            stdin=subprocess.DEVNULL,
-        )
-        os.sched_setaffinity(proc.pid, {cpu})
-        loops.append(proc)
-    yield loops
-    for proc in loops:
-        proc.kill()
-        proc.wait()
+    with busy_loops_running() as loops:
+        yield loops
 
 
 def _exercises(notebook: dict) -> list[str]:
