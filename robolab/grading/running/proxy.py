@@ -118,6 +118,10 @@ class WorkerTimeout(StudentCodeError):
     """A call exceeded its wall-time or CPU-time limit."""
 
 
+class ScratchExceeded(WorkerCrashed):
+    """A call wrote more files than its work directory may hold (without the tmpfs view)."""
+
+
 class MissingFunction(StudentCodeError, AttributeError):
     """The notebook does not define the function."""
 
@@ -493,7 +497,7 @@ class _Worker:
             used = sandbox.directory_bytes(self.plan.workdir, sandbox.WORKDIR_BYTES)
             if used > sandbox.WORKDIR_BYTES:
                 self.kill()
-                raise WorkerCrashed(
+                raise ScratchExceeded(
                     f"wrote more than {sandbox.WORKDIR_BYTES // 2**20} MiB of files "
                     "to its work directory",
                     kind="crash",
@@ -976,6 +980,7 @@ class SubmissionProxy:
                     exc = WorkerTimeout(
                         f"timed out: the submission used up its {spent}", kind="timeout"
                     )
+            if isinstance(exc, (WorkerTimeout, ScratchExceeded)):
                 self._note_cut(f"{name}(): {exc.message}")
             if isinstance(exc, BrokenPipeError):
                 raise WorkerCrashed(
