@@ -425,6 +425,7 @@ class _Worker:
         self.awake.restart()
         self.wall_seconds = wall_seconds
         self.request_cpu = self.request_awake = 0.0
+        before = processes.run_delay()  # until it is written, the worker waits for this thread
         payload = pickle.dumps(message, protocol=5)
         frame = memoryview(HEADER.pack(len(payload)) + payload)
         poller = select.poll()
@@ -440,6 +441,9 @@ class _Worker:
                 self._check_alive(force=True)
                 raise
             frame = frame[written:]
+        after = processes.run_delay()
+        if before is not None and after is not None:
+            self.awake.excuse(after - before)
 
     def receive(self, cpu_limit: float | None, alarm_after: float | None = None) -> Any:
         """The next message, decoded with the codec, within the request's wall and CPU limits.

@@ -71,8 +71,8 @@ import time as _time
 _DEPTH = [0]
 
 
-def _three_times_slower(function):
-    """The same results for three times the CPU time (counted at the outermost call)."""
+def _slower(function):
+    """The same results for four times the CPU time (counted at the outermost call)."""
 
     @_functools.wraps(function)
     def slower(*args, **kwargs):
@@ -84,7 +84,7 @@ def _three_times_slower(function):
             _DEPTH[0] -= 1
             if _DEPTH[0] == 0:
                 spent = _time.process_time() - start
-                while _time.process_time() - start < 3 * spent:
+                while _time.process_time() - start < 4 * spent:
                     pass
 
     return slower
@@ -92,11 +92,16 @@ def _three_times_slower(function):
 
 
 def three_times_slower(source: Path, target: Path) -> Path:
-    """A copy of a correct notebook whose exercises take three times the CPU time."""
+    """A copy of a correct notebook whose worker takes about three times the CPU time.
+
+    Its exercises take four times theirs: loading the notebook and moving arguments and
+    results cost the same as before (measured on MCL: 12.2 s of worker CPU, of which
+    8 s in the exercises; 3x on the exercises alone gave 2.3x in all).
+    """
     notebook = json.loads(source.read_text())
     names = _exercises(notebook)
     assert names, f"{source} has no exercise cells"
-    code = SLOWER + "".join(f"\n{n} = _three_times_slower({n})" for n in names)
+    code = SLOWER + "".join(f"\n{n} = _slower({n})" for n in names)
     notebook["cells"].append(
         {
             "cell_type": "code",
@@ -134,7 +139,7 @@ def test_the_same_grades_beside_busy_loops(tmp_path, request):
     for r in loaded:
         assert r.total == r.max_points > 0 and not r.limits and not r.errors, r.name
     cpu = {r.name: r.cpu_seconds for r in loaded}
-    assert cpu["mcl_slow"] > 2 * cpu["mcl"]  # it really is slower, and it kept full marks
+    assert cpu["mcl_slow"] > 2.5 * cpu["mcl"]  # it really is slower, and it kept full marks
 
 
 def _hanging(path: Path) -> Path:
