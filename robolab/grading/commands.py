@@ -312,6 +312,7 @@ def _on_sigterm_interrupt():
         return None
 
     def interrupt(signum, frame):
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # one stops the batch; stopping is bounded
         raise KeyboardInterrupt
 
     return signal.signal(signal.SIGTERM, interrupt)

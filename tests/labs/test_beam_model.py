@@ -38,9 +38,10 @@ grades = pytest.mark.grades
 requires = pytest.mark.requires
 
 COMPONENTS = ["p_hit", "p_short", "p_max", "p_rand"]
-#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
-#: idle machine, 2026-12-01): a submission gets a few times that in total.
-REFERENCE_SECONDS = 2.0
+#: CPU seconds the reference solution's worker uses while graded (loading and every call,
+#: children included: `cpu_seconds` of the correct example in `make grade`'s gradebook.json,
+#: 2026-12-02): a submission gets 8 times that in total, at least 20 s (docs/grading.md).
+REFERENCE_CPU_SECONDS = 1.0
 
 #: A student's model calls their own component densities; the map calls their model.
 USES = {

@@ -29,9 +29,10 @@ from robolab.raycast import cast_rays
 
 ANGLES = np.deg2rad(10.0 * np.arange(36))  # the seed's 36 beams
 ZMAX = 20.0
-#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
-#: idle machine, 2026-12-01): a submission gets a few times that in total.
-REFERENCE_SECONDS = 3.9
+#: CPU seconds the reference solution's worker uses while graded (loading and every call,
+#: children included: `cpu_seconds` of the correct example in `make grade`'s gradebook.json,
+#: 2026-12-02): a submission gets 8 times that in total, at least 20 s (docs/grading.md).
+REFERENCE_CPU_SECONDS = 3.7
 
 #: Exercises each exercise is likely to call (the feedback names them when they fail).
 USES = {

@@ -28,9 +28,10 @@ from robolab.geometry import compose, wrap_angle
 from robolab.maps import OccupancyGrid, load_map
 
 RNG_SEED = 404
-#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
-#: idle machine, 2026-12-01): a submission gets a few times that in total.
-REFERENCE_SECONDS = 6.7
+#: CPU seconds the reference solution's worker uses while graded (loading and every call,
+#: children included: `cpu_seconds` of the correct example in `make grade`'s gradebook.json,
+#: 2026-12-02): a submission gets 8 times that in total, at least 20 s (docs/grading.md).
+REFERENCE_CPU_SECONDS = 3.2
 
 #: Exercises each exercise is likely to call (the feedback names them when they fail).
 USES = {"counting_map_update": ["beam_cells"]}

@@ -93,7 +93,7 @@ def _row(r: SubmissionResult, context: Context) -> dict:
     total = sum(got for got, _ in scores.values())
     late = context.lateness.get(r.name)
     student = context.roster.student_of.get(r.name) if context.roster else None
-    flags = list(r.flags) + refused + (context.roster.flags(r.name) if context.roster else [])
+    flags = _flags(r) + refused + (context.roster.flags(r.name) if context.roster else [])
     return {
         "submission": r.name,
         "path": display_path(r.path),
@@ -114,6 +114,7 @@ def _row(r: SubmissionResult, context: Context) -> dict:
         "errors": [display_path(e) for e in r.errors],
         "load_problems": len(r.problems),
         "seconds": round(r.seconds, 2),
+        "cpu_seconds": round(r.cpu_seconds, 2),
         "isolation": r.isolation,
     }
 
@@ -271,9 +272,15 @@ def remove_stale_feedback(out: Path, names: Sequence[str]) -> list[Path]:
     return stale
 
 
+def _flags(r: SubmissionResult) -> list[str]:
+    """The result's flags, a limit that cut it short among them."""
+    return [*r.flags, *(f"limit: {line}" for line in r.limits)]
+
+
 def _details(r: SubmissionResult) -> str:
-    if r.flags:
-        return "FLAG: " + _printable(r.flags[0])
+    if flags := _flags(r):
+        more = f" (+{len(flags) - 1} more)" if len(flags) > 1 else ""
+        return "FLAG: " + _printable(flags[0]) + more
     if r.errors:
         note = _printable(r.errors[0].splitlines()[0] if r.errors[0].strip() else r.errors[0])
         return note if len(note) <= 70 else note[:67] + "..."

@@ -21,6 +21,7 @@ fresh worker with the notebook's definitions reloaded.
 from __future__ import annotations
 
 import builtins
+import dataclasses
 import os
 import pickle
 import select
@@ -49,7 +50,7 @@ if TYPE_CHECKING:
     from robolab.grading.running.answers import Answers
 
 __all__ = [
-    "reference_budget",
+    "reference_limits",
     "IsolationWarning",
     "Limits",
     "MissingFunction",
@@ -61,13 +62,21 @@ __all__ = [
     "open_submission",
 ]
 
-#: Without ``Limits.total_wall_seconds``, a submission's calls may take this many per-call
-#: wall limits in total.
+#: Without ``Limits.total_cpu_seconds`` / ``total_wall_seconds``, a submission (its loads
+#: and calls together) may use this many per-call limits in total.
 BUDGET_CALLS = 5
-#: A lab whose hidden tests state ``REFERENCE_SECONDS`` (the reference solution's call time)
-#: gives a submission this many times that, at least :data:`MIN_BUDGET_SECONDS` (and never
-#: more than :data:`BUDGET_CALLS` per-call limits): see :func:`reference_budget`.
+#: A lab whose hidden tests state ``REFERENCE_CPU_SECONDS`` (the CPU time the reference
+#: solution's worker uses while graded) gives a submission this many times that in CPU
+#: time, at least :data:`MIN_CPU_BUDGET_SECONDS` (never more than :data:`BUDGET_CALLS`
+#: per-call limits): see :func:`reference_limits`. A correct solution 5x slower than the
+#: reference fits with room to spare (CPU time itself grows a little on a busy machine).
 BUDGET_FACTOR = 8.0
+MIN_CPU_BUDGET_SECONDS = 20.0
+#: The wall-time backstop of a submission with a reference: this many times its CPU budget,
+#: at least :data:`MIN_BUDGET_SECONDS`, counted net of waiting for a CPU
+#: (:class:`~robolab.grading.isolation.processes.AwakeClock`): it stops a submission that sleeps,
+#: never one that computes or waits for a core.
+WALL_FACTOR = 2.0
 MIN_BUDGET_SECONDS = 60.0
 
 #: The grader thread's CPU clock, which decoding a result is charged by.
@@ -115,6 +124,10 @@ class WorkerCrashed(StudentCodeError):
 
 class WorkerTimeout(StudentCodeError):
     """A call exceeded its wall-time or CPU-time limit."""
+
+
+class ScratchExceeded(WorkerCrashed):
+    """A call wrote more files than its work directory may hold (without the tmpfs view)."""
 
 
 class MissingFunction(StudentCodeError, AttributeError):
@@ -205,9 +218,11 @@ class Limits:
     Attributes
     ----------
     cpu_seconds : float
-        CPU time per call (and for loading the notebook).
+        CPU time per call (and for loading the notebook), the processes it starts included.
     wall_seconds : float
-        Wall-clock time per call (and for loading the notebook).
+        Wall-clock time per call (and for loading the notebook), a backstop against
+        sleeping or stalled code: counted net of the time the worker (and the grader
+        waiting for it) spent waiting for a CPU, so a busy machine never reaches it.
     memory_bytes : int
         Address space of the worker (RLIMIT_AS).
     max_processes : int
@@ -215,10 +230,14 @@ class Limits:
     max_output_bytes : int
         stdout + stderr kept per submission; the rest is counted and dropped.
     total_wall_seconds : float or None
-        Wall-clock time of all of a submission's calls together; once spent,
-        its remaining calls fail at once. None: :data:`BUDGET_CALLS` times
-        ``wall_seconds``; a lab whose hidden tests state the reference's time
-        (``REFERENCE_SECONDS``) gets :func:`reference_budget` of it.
+        Wall-clock backstop of a whole submission (every load of the notebook and
+        every call), counted like ``wall_seconds``; once spent, its remaining calls
+        fail at once. None: :data:`BUDGET_CALLS` times ``wall_seconds``.
+    total_cpu_seconds : float or None
+        CPU time of a whole submission (every load and every call, the processes
+        they start included): what decides "too slow". None: :data:`BUDGET_CALLS`
+        times ``cpu_seconds``; a lab whose hidden tests state the reference's CPU
+        time (``REFERENCE_CPU_SECONDS``) gets :func:`reference_limits` of it.
     """
 
     cpu_seconds: float = 30.0
@@ -227,56 +246,109 @@ class Limits:
     max_processes: int = 64
     max_output_bytes: int = 2**20
     total_wall_seconds: float | None = None
+    total_cpu_seconds: float | None = None
 
     @property
     def budget_seconds(self) -> float:
-        """The total wall time of a submission's calls."""
+        """The wall-time backstop of a whole submission (net of waiting for a CPU)."""
         if self.total_wall_seconds is not None:
             return self.total_wall_seconds
         return BUDGET_CALLS * self.wall_seconds
 
+    @property
+    def cpu_budget_seconds(self) -> float:
+        """The CPU time of a whole submission: loads and calls, children included."""
+        if self.total_cpu_seconds is not None:
+            return self.total_cpu_seconds
+        return BUDGET_CALLS * self.cpu_seconds
 
-def reference_budget(limits: Limits, reference_seconds: float) -> float:
-    """A submission's total call time: a few times the reference's, bounded both ways.
 
-    ``max(MIN_BUDGET_SECONDS, BUDGET_FACTOR * reference_seconds)``, but never more than the
-    default :attr:`Limits.budget_seconds` (``BUDGET_CALLS`` per-call wall limits). The floor
-    keeps a correct but slower solution (or a loaded grading machine) from losing points.
+def reference_limits(limits: Limits, reference_cpu_seconds: float) -> Limits:
+    """``limits`` with the totals a lab's reference CPU time gives (those not set already).
+
+    CPU: ``max(MIN_CPU_BUDGET_SECONDS, BUDGET_FACTOR * reference_cpu_seconds)``; the wall
+    backstop: ``max(MIN_BUDGET_SECONDS, WALL_FACTOR * cpu budget)``. Neither exceeds its
+    default (``BUDGET_CALLS`` per-call limits). Both are charged with what the worker uses,
+    measured as the reference was, so the grade does not depend on the machine's load.
+
+    Raises
+    ------
+    ValueError
+        When ``reference_cpu_seconds`` is not a positive number.
     """
-    if not reference_seconds > 0:
-        raise ValueError(f"reference_seconds must be > 0, got {reference_seconds!r}")
-    return min(limits.budget_seconds, max(MIN_BUDGET_SECONDS, BUDGET_FACTOR * reference_seconds))
+    if not reference_cpu_seconds > 0:
+        raise ValueError(f"reference_cpu_seconds must be > 0, got {reference_cpu_seconds!r}")
+    cpu = limits.total_cpu_seconds
+    if cpu is None:
+        cpu = min(
+            limits.cpu_budget_seconds,
+            max(MIN_CPU_BUDGET_SECONDS, BUDGET_FACTOR * reference_cpu_seconds),
+        )
+    wall = limits.total_wall_seconds
+    if wall is None:
+        wall = min(limits.budget_seconds, max(MIN_BUDGET_SECONDS, WALL_FACTOR * cpu))
+    return dataclasses.replace(limits, total_cpu_seconds=cpu, total_wall_seconds=wall)
 
 
 # --- output ------------------------------------------------------------------------------------
 
 
 class _Output:
-    """A bounded buffer for what student code prints, shared by successive workers."""
+    """A bounded buffer for what student code prints, shared by successive workers.
+
+    A thread per worker drains its pipe as output arrives; :meth:`text` also reads
+    what is already in the pipes, so what a call printed (the worker flushes before it
+    answers) is there as soon as the call returns, however late the thread runs.
+    """
+
+    #: Most bytes :meth:`text` reads from a pipe itself (the drainer does the rest).
+    READ_AHEAD = 1 << 22
 
     def __init__(self, limit: int) -> None:
         self.limit = limit
         self.data = bytearray()
         self.dropped = 0
         self.lock = threading.Lock()
+        self.pipes: set[int] = set()
+
+    def _read(self, fd: int, most: float = float("inf")) -> bool:
+        """Read what ``fd`` holds now (under the lock), up to ``most`` bytes; False at its end."""
+        while most > 0:
+            try:
+                chunk = os.read(fd, 1 << 16)
+            except BlockingIOError:
+                return True
+            if not chunk:
+                return False
+            most -= len(chunk)
+            room = max(self.limit - len(self.data), 0)
+            self.data += chunk[:room]
+            self.dropped += max(len(chunk) - room, 0)
+        return True
 
     def drain(self, fd: int) -> None:
         # Reads until end of file, keeping only `limit` bytes: a flood never
         # fills the grader's memory and never blocks the worker on a full pipe.
+        os.set_blocking(fd, False)
+        poller = select.poll()
+        poller.register(fd, select.POLLIN)
+        with self.lock:
+            self.pipes.add(fd)
         try:
             while True:
-                chunk = os.read(fd, 1 << 16)
-                if not chunk:
-                    break
+                poller.poll()
                 with self.lock:
-                    room = self.limit - len(self.data)
-                    self.data += chunk[: max(room, 0)]
-                    self.dropped += max(len(chunk) - max(room, 0), 0)
+                    if not self._read(fd, 1 << 20):
+                        break
         finally:
-            os.close(fd)
+            with self.lock:
+                self.pipes.discard(fd)
+                os.close(fd)
 
     def text(self) -> str:
         with self.lock:
+            for fd in self.pipes:
+                self._read(fd, self.READ_AHEAD)
             text = self.data.decode("utf-8", errors="replace")
             if self.dropped:
                 text += f"\n[... {self.dropped} more bytes of output were dropped]\n"
@@ -330,8 +402,14 @@ class _Worker:
             for fd in (request_r, response_w, output_w):
                 os.close(fd)
         self.uid = sandbox.worker_uid(self.process.pid) if self.plan.drop_privileges else None
+        _tell_runner(self.process.pid)
         #: CPU time of the worker's whole process group, and the sweep after each call.
         self.clock = processes.GroupClock(self.process.pid)
+        #: Wall time of the current request, net of waiting for a CPU (the wall limits).
+        self.awake = processes.AwakeClock(self.process.pid)
+        #: CPU seconds of the current request so far (the group's, children included), and
+        #: its awake seconds until its answer arrived or it was stopped (not the sweep after).
+        self.request_cpu = self.request_awake = 0.0
         self._finalizer = weakref.finalize(
             self, _reap, self.process, self.uid, (self.request_w, self.response_r), self.base
         )
@@ -343,25 +421,29 @@ class _Worker:
         )
         self.drainer.start()
         self.report: sandbox.SandboxReport | None = None
-        #: Wall-time budget of the current request (for the timeout message).
-        self.wall_seconds = limits.wall_seconds
+        #: Wall limit of the current request (on the awake clock); first: starting up.
+        self.wall_seconds = STARTUP_SECONDS
         self.calls = 0
 
     # -- messages --
 
-    def send(self, message: tuple, deadline: float) -> None:
-        """Send a request; CPU time and new processes count against it from now on."""
+    def send(self, message: tuple, wall_seconds: float) -> None:
+        """Send a request; CPU time, wall time and new processes count against it from now on."""
         self.clock.start_call()  # before the worker can act on the request
-        self.reply(message, deadline)
+        self.awake.restart()
+        self.wall_seconds = wall_seconds
+        self.request_cpu = self.request_awake = 0.0
+        self.reply(message)
 
-    def reply(self, message: tuple, deadline: float) -> None:
-        """Send a message within the running request (the answer to a depcall)."""
+    def reply(self, message: tuple) -> None:
+        """Send a message within the running request (the request, or a depcall's answer)."""
+        before = processes.run_delay()  # until it is written, the worker waits for this thread
         payload = pickle.dumps(message, protocol=5)
         frame = memoryview(HEADER.pack(len(payload)) + payload)
         poller = select.poll()
         poller.register(self.request_w, select.POLLOUT)
         while frame:
-            self._check_time(deadline, None)
+            self._check_time(None)
             if not poller.poll(POLL_SECONDS * 1000):
                 self._check_alive()
                 continue
@@ -371,22 +453,28 @@ class _Worker:
                 self._check_alive(force=True)
                 raise
             frame = frame[written:]
+        after = processes.run_delay()
+        if before is not None and after is not None:
+            self.awake.excuse(after - before)
 
     def receive(
         self,
-        deadline: float,
         cpu_limit: float | None,
+        alarm_after: float | None = None,
         on_depcall: Callable[[Any], tuple] | None = None,
     ) -> Any:
-        """The next message, decoded with the codec, within the wall and CPU limits.
+        """The next message, decoded with the codec, within the request's wall and CPU limits.
 
-        A ``("depcall", ...)`` message on the way (robolab.grading.running.answers) is answered
+        ``alarm_after``: awake seconds after which the worker gets ``SIGALRM`` (again every
+        0.5 s): the load's wall budget, which stops the cell that spends it. A
+        ``("depcall", ...)`` message on the way (robolab.grading.running.answers) is answered
         with ``on_depcall(message)`` and the wait goes on, within the same limits; without
         ``on_depcall`` it is the answer, which the caller refuses as out of turn.
         """
+        self._alarm_after = alarm_after
         decoding = 0.0  # the grader's CPU spent decoding on this submission's behalf
         while True:
-            data = self._read_message(deadline, cpu_limit)
+            data = self._read_message(cpu_limit)
             # Charged to the call (the codec bounds it to a small multiple of the size).
             started = decode_clock()
             try:
@@ -401,18 +489,25 @@ class _Worker:
                 self._end_call(cpu_limit, decoding)
                 return message
             reply = on_depcall(message)
-            self._check_time(deadline, cpu_limit)  # the reference's time counts for the call
-            self.reply(reply, deadline)
+            self._check_time(cpu_limit)  # the reference's time counts for the call's wall
+            self.reply(reply)
 
-    def _read_message(self, deadline: float, cpu_limit: float | None) -> bytes:
-        """One length-prefixed message's bytes, within the wall and CPU limits."""
+    def _read_message(self, cpu_limit: float | None) -> bytes:
+        """One length-prefixed message's bytes, within the request's wall and CPU limits."""
         buffer = bytearray()
         size: int | None = None
         poller = select.poll()
         poller.register(self.response_r, select.POLLIN)
         while size is None or len(buffer) < size:
-            self._check_time(deadline, cpu_limit)
-            if not poller.poll(POLL_SECONDS * 1000):
+            self._check_time(cpu_limit)
+            alarm = self._alarm_after
+            if alarm is not None and self.request_awake > alarm:
+                self._alarm_after = self.request_awake + 0.5
+                try:
+                    os.kill(self.process.pid, signal.SIGALRM)
+                except (ProcessLookupError, PermissionError):
+                    pass
+            if not self._wait(poller):
                 self._check_alive()
                 continue
             chunk = os.read(self.response_r, 1 << 20)
@@ -427,6 +522,7 @@ class _Worker:
                         f"at most {MAX_MESSAGE_BYTES} are accepted)",
                         kind="result",
                     )
+        self.request_awake = self.awake.elapsed()
         if len(buffer) > size:
             raise StudentCodeError(
                 "the worker sent more than one answer to one request", kind="protocol"
@@ -436,6 +532,7 @@ class _Worker:
     def _end_call(self, cpu_limit: float | None, decoding: float = 0.0) -> None:
         """Kill what the call started, charging its CPU and ``decoding``; check the scratch."""
         cpu, _ = self.clock.sweep()
+        self.request_cpu = cpu + decoding
         if cpu_limit is not None and cpu + decoding > cpu_limit:
             self.kill()
             raise WorkerTimeout(
@@ -448,11 +545,23 @@ class _Worker:
             used = sandbox.directory_bytes(self.plan.workdir, sandbox.WORKDIR_BYTES)
             if used > sandbox.WORKDIR_BYTES:
                 self.kill()
-                raise WorkerCrashed(
+                raise ScratchExceeded(
                     f"wrote more than {sandbox.WORKDIR_BYTES // 2**20} MiB of files "
                     "to its work directory",
                     kind="crash",
                 )
+
+    def _wait(self, poller: select.poll) -> bool:
+        """Poll for the worker's answer; the time this thread then waited for a core, the
+        worker (which is waiting for us) is excused."""
+        before = processes.run_delay()
+        if not poller.poll(POLL_SECONDS * 1000):
+            return False
+        after = processes.run_delay()
+        if before is not None and after is not None:
+            self.awake.excuse(after - before)
+        return True
+
 
     # -- limits and death --
 
@@ -465,14 +574,19 @@ class _Worker:
             return 0.0
         return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
-    def _check_time(self, deadline: float, cpu_limit: float | None) -> None:
-        if time.monotonic() > deadline:
+    def _check_time(self, cpu_limit: float | None) -> None:
+        self.request_awake = self.awake.elapsed()
+        if self.request_awake > self.wall_seconds:
             self.kill()
             raise WorkerTimeout(
-                f"timed out: took longer than {self.wall_seconds:g} s of wall time",
+                f"timed out: took longer than {self.wall_seconds:g} s of wall time "
+                "(not counting time spent waiting for a CPU)",
                 kind="timeout",
             )
-        if cpu_limit is not None and self.clock.used() > cpu_limit:
+        if cpu_limit is None:
+            return
+        self.request_cpu = self.clock.used()
+        if self.request_cpu > cpu_limit:
             self.kill()
             raise WorkerTimeout(
                 f"timed out: used more than {cpu_limit:g} s of CPU time "
@@ -551,6 +665,17 @@ def _launch(
         env=env,
         start_new_session=True,  # its own session and process group, killed as a group
     )
+
+
+def _tell_runner(pid: int) -> None:
+    """Append the worker's pid to the runner's file (:data:`processes.WORKER_PIDS_VARIABLE`)."""
+    path = os.environ.get(processes.WORKER_PIDS_VARIABLE)
+    if path:
+        try:
+            with open(path, "a", encoding="ascii") as f:
+                f.write(f"{pid}\n")
+        except OSError:
+            pass  # the runner's timeout then counts this worker's waiting too
 
 
 def _kill_tree(process: subprocess.Popen, uid: int | None) -> None:
@@ -663,10 +788,58 @@ class SubmissionProxy:
         self._timed_out: set[str] = set()
         #: Exercises whose reference answered a depcall in the current worker.
         self._disclosed: set[str] = set()
-        #: Wall seconds spent in calls so far (against ``limits.budget_seconds``).
-        self.spent_seconds = 0.0
         #: Wall seconds the grader spent answering depcalls (not the submission's time).
         self.answering_seconds = 0.0
+        #: Wall seconds (net of waiting for a CPU) of every load and call so far, against
+        #: ``limits.budget_seconds``.
+        self.spent_seconds = 0.0
+        #: CPU seconds of every load and call so far (children included), against
+        #: ``limits.cpu_budget_seconds``.
+        self.spent_cpu_seconds = 0.0
+        #: The longest CPU time of one call so far.
+        self.longest_call_cpu_seconds = 0.0
+        #: ``{what was cut short and by which limit: how many times}``.
+        self._cut: dict[str, int] = {}
+
+    def limits_hit(self) -> list[str]:
+        """What a limit cut short, one line each, in the order it first happened."""
+        return [f"{text} ({n} times)" if n > 1 else text for text, n in self._cut.items()]
+
+    def usage(self) -> dict:
+        """The submission's time so far and the limits that cut it short (for the report)."""
+        return {
+            "cpu_seconds": round(self.spent_cpu_seconds, 3),
+            "awake_seconds": round(self.spent_seconds, 3),
+            "longest_call_cpu_seconds": round(self.longest_call_cpu_seconds, 3),
+            "cpu_budget_seconds": self._limits.cpu_budget_seconds,
+            "wall_budget_seconds": self._limits.budget_seconds,
+            "limits": self.limits_hit(),
+        }
+
+    def _note_cut(self, text: str) -> None:
+        self._cut[text] = self._cut.get(text, 0) + 1
+
+    def _left(self) -> tuple[float, float]:
+        """CPU and wall seconds left in the submission's budgets."""
+        return (
+            self._limits.cpu_budget_seconds - self.spent_cpu_seconds,
+            self._limits.budget_seconds - self.spent_seconds,
+        )
+
+    def _charge(self, worker: _Worker) -> float:
+        """Add the request that just ended to the submission's totals; return its CPU time."""
+        self.spent_cpu_seconds += worker.request_cpu
+        self.spent_seconds += worker.request_awake
+        return worker.request_cpu
+
+    def _budget_spent(self) -> str | None:
+        """Which total budget is used up, in words; None while both last."""
+        cpu_left, wall_left = self._left()
+        if cpu_left <= 0:
+            return f"total CPU time budget of {self._limits.cpu_budget_seconds:g} s"
+        if wall_left <= 0:
+            return f"total time budget of {self._limits.budget_seconds:g} s"
+        return None
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("__") or name.startswith("_"):
@@ -715,7 +888,7 @@ class SubmissionProxy:
         """A fresh worker with the notebook's definitions loaded."""
         worker = _Worker(self._limits, self._output)
         try:
-            message = worker.receive(time.monotonic() + STARTUP_SECONDS, None)
+            message = worker.receive(None)
             if message[0] != "ready":
                 raise WorkerStartError(f"the grading worker could not isolate itself: {message[1]}")
             worker.report = sandbox.SandboxReport.from_dict(message[1])
@@ -735,16 +908,26 @@ class SubmissionProxy:
         if self.sandbox is None:
             self.sandbox = worker.report
             _warn_if_weak(worker.report)
+        # Loading (and every reload after a crash) is charged to the submission's budgets.
+        cpu_left, wall_left = self._left()
+        wall = max(min(self._limits.wall_seconds, wall_left), 0.0)
+        cpu = max(min(self._limits.cpu_seconds, cpu_left), 0.0)
         try:
-            deadline = time.monotonic() + self._limits.wall_seconds
-            budget = load_budget(self._limits.wall_seconds, self._limits.cpu_seconds)
-            worker.send(("define", self._notebook.cells, *budget), deadline)
-            message = self._expect(
-                worker, worker.receive(deadline, self._limits.cpu_seconds), "defined"
-            )
+            budget = load_budget(wall, cpu)
+            worker.send(("define", self._notebook.cells, *budget), wall)
+            try:
+                reply = worker.receive(cpu, alarm_after=budget[0])
+            finally:
+                self._charge(worker)
+            message = self._expect(worker, reply, "defined")
         except (StudentCodeError, codec.CodecError, BrokenPipeError) as exc:
             if not isinstance(exc, StudentCodeError):
                 exc = StudentCodeError(f"the worker broke the protocol: {exc}", kind="protocol")
+            if isinstance(exc, WorkerTimeout):
+                spent = self._budget_spent()
+                if spent is not None:
+                    exc = WorkerTimeout(f"the submission used up its {spent}", kind="timeout")
+                self._note_cut(f"loading the notebook: {exc.message}")
             worker.close()
             self._broken = type(exc)(
                 f"loading the notebook's definitions failed: {exc.message}",
@@ -762,6 +945,25 @@ class SubmissionProxy:
             for problem in message[2]:
                 index, kind, text = problem
                 self.problems.append(self._notebook.problem(int(index), str(kind), str(text)))
+                if kind == "timeout":
+                    self._note_cut(f"loading the notebook: {self.problems[-1]}")
+        limits = self._limits
+        if any(p[1] == "timeout" for p in message[2]) and (
+            wall < limits.wall_seconds or cpu < limits.cpu_seconds
+        ):
+            # What was left of a budget did not load the notebook (again): it is as good as
+            # spent, rather than paid again, a little less each time, by every later call.
+            worker.close()
+            if wall < limits.wall_seconds:
+                self.spent_seconds = max(self.spent_seconds, limits.budget_seconds)
+            if cpu < limits.cpu_seconds:
+                self.spent_cpu_seconds = max(self.spent_cpu_seconds, limits.cpu_budget_seconds)
+            spent = self._budget_spent()
+            self._note_cut(f"loading the notebook: the submission used up its {spent}")
+            raise WorkerTimeout(
+                f"loading the notebook was stopped: the submission used up its {spent}",
+                kind="timeout",
+            )
         return worker
 
     def _expect(self, worker: _Worker, message: Any, kind: str, call_id: int | None = None) -> Any:
@@ -796,11 +998,11 @@ class SubmissionProxy:
             pickle.dumps((args, kwargs), protocol=5)
         except Exception as exc:
             raise TypeError(f"arguments to {name}() cannot be sent to the worker: {exc}") from exc
-        if self.spent_seconds >= self._limits.budget_seconds:
+        spent = self._budget_spent()
+        if spent is not None:
+            self._note_cut(f"calls not run: the submission used up its {spent}")
             raise WorkerTimeout(
-                f"{name}() was not run: the submission used up its total time budget "
-                f"of {self._limits.budget_seconds:g} s",
-                kind="timeout",
+                f"{name}() was not run: the submission used up its {spent}", kind="timeout"
             )
         worker = self._worker
         if (
@@ -821,6 +1023,11 @@ class SubmissionProxy:
             worker = None
         if worker is None:
             worker = self._worker = self._start()
+            if (spent := self._budget_spent()) is not None:  # the load used up the rest
+                self._note_cut(f"calls not run: the submission used up its {spent}")
+                raise WorkerTimeout(
+                    f"{name}() was not run: the submission used up its {spent}", kind="timeout"
+                )
         self._call_id += 1
         call_id = self._call_id
         wall, cpu = self._limits.wall_seconds, self._limits.cpu_seconds
@@ -828,16 +1035,21 @@ class SubmissionProxy:
             # It ran out of time before: it most likely will again, and each try
             # would cost a full wall limit. A small input still gets its answer.
             wall, cpu = min(wall, max(1.0, wall / 10)), min(cpu, max(1.0, cpu / 10))
-        left = self._limits.budget_seconds - self.spent_seconds
-        budget_bound = left < wall
-        wall = min(wall, left)
-        worker.wall_seconds = wall
-        started, answering = time.monotonic(), self.answering_seconds
-        deadline = started + wall
+        cpu_left, wall_left = self._left()
+        wall, cpu = min(wall, wall_left), min(cpu, cpu_left)
+        answering = self.answering_seconds
         below = self.answers.stubbed(name) if self.answers is not None else ()
         try:
-            worker.send(("call", call_id, name, args, kwargs, cpu, below), deadline)
-            message = worker.receive(deadline, cpu, self._depcalls(call_id, below))
+            try:
+                worker.send(("call", call_id, name, args, kwargs, cpu, below), wall)
+                message = worker.receive(cpu, on_depcall=self._depcalls(call_id, below))
+            finally:
+                # The grader's own time answering depcalls counts for the call's wall limit
+                # (a bound), not for the submission's total budget: it is not the student's.
+                answered = self.answering_seconds - answering
+                worker.request_awake = max(0.0, worker.request_awake - answered)
+                call_cpu = self._charge(worker)
+                self.longest_call_cpu_seconds = max(self.longest_call_cpu_seconds, call_cpu)
         except codec.CodecError as exc:
             self._discard()
             raise StudentCodeError(
@@ -847,12 +1059,13 @@ class SubmissionProxy:
             self._discard()
             if isinstance(exc, WorkerTimeout):
                 self._timed_out.add(name)
-                if budget_bound and time.monotonic() >= deadline:
+                spent = self._budget_spent()
+                if spent is not None:
                     exc = WorkerTimeout(
-                        f"timed out: the submission used up its total time budget of "
-                        f"{self._limits.budget_seconds:g} s",
-                        kind="timeout",
+                        f"timed out: the submission used up its {spent}", kind="timeout"
                     )
+            if isinstance(exc, (WorkerTimeout, ScratchExceeded)):
+                self._note_cut(f"{name}(): {exc.message}")
             if isinstance(exc, BrokenPipeError):
                 raise WorkerCrashed(
                     f"the worker died before {name}() could run", kind="crash"
@@ -860,11 +1073,6 @@ class SubmissionProxy:
             raise type(exc)(
                 f"{name}(): {exc.message}", kind=exc.kind, student_traceback=exc.student_traceback
             ) from None
-        finally:
-            # The grader's own time answering depcalls counts for the call's wall limit (a
-            # bound), not for the submission's total budget: it is not the student's code.
-            self.spent_seconds += time.monotonic() - started
-            self.spent_seconds -= self.answering_seconds - answering
         return self._answer(worker, name, call_id, message, args, kwargs)
 
     def _depcalls(self, call_id: int, below: tuple[str, ...]) -> Callable[[Any], tuple] | None:
@@ -923,6 +1131,10 @@ class SubmissionProxy:
                 self._discard()
                 raise StudentCodeError("the worker sent a malformed error", kind="protocol")
             cls = student_error_class([b for b in info["bases"] if isinstance(b, str)])
+            if cls.__name__ == "StudentMemoryError":
+                self._note_cut(
+                    f"{name}(): ran out of memory (limit {self._limits.memory_bytes / 2**30:g} GiB)"
+                )
             raise cls(
                 str(info.get("message", "")),
                 kind=str(info.get("type", "Exception")),

@@ -8,9 +8,10 @@ a proxy to the student's notebook running in an isolated worker process.
 A hidden test module may set ``GRADING_LIMITS = {"cpu_seconds": 2, ...}`` (the
 fields of :class:`robolab.grading.running.proxy.Limits`) to tighten or relax the
 worker's per-call limits for its lab: a lab of microsecond functions should not
-let a hanging submission cost a minute per test. ``REFERENCE_SECONDS`` (the
-reference solution's grading time) sets the submission's total time budget to a
-few times that (:func:`robolab.grading.running.proxy.reference_budget`).
+let a hanging submission cost a minute per test. ``REFERENCE_CPU_SECONDS`` (the CPU
+time the reference solution's worker uses while graded) sets the submission's total
+CPU budget to a few times that, and its wall backstop with it
+(:func:`robolab.grading.running.proxy.reference_limits`).
 
 Every hidden test carries the ``grades`` marker naming the exercise function it
 grades and its points (a positive number). A test under ``tests/labs/`` without
@@ -22,7 +23,11 @@ With ``--grading-report PATH`` the plugin writes what the grader needs as JSON::
      "tests": [{"nodeid", "name", "description", "exercise", "points",
                 "outcome": "passed" | "failed" | "error" | "skipped", "message"}],
      "problems": [{"cell_index", "kind", "message"}],   # from loading the notebook
+     "usage": {"cpu_seconds", "awake_seconds", "limits": [str], ...} | null,
      "collection_errors": [str]}
+
+``usage`` is the submission's time (:meth:`SubmissionProxy.usage`) and what a limit
+cut short, which the gradebook flags.
 
 Two more markers shape the credit and the feedback (``docs/grading.md``):
 
@@ -78,6 +83,7 @@ USES = "uses"
 MAX_MESSAGE_CHARS = 2000
 
 _problems_key = pytest.StashKey[list]()
+_proxies_key = pytest.StashKey[list]()
 _collector_key = pytest.StashKey["GradingCollector"]()
 
 
@@ -110,6 +116,7 @@ def pytest_configure(config: pytest.Config) -> None:
         "markers", f"{USES}(*exercises): other exercises this test relies on (for the feedback)"
     )
     config.stash[_problems_key] = []
+    config.stash[_proxies_key] = []
     path = config.getoption("--grading-report")
     if path:
         collector = GradingCollector(Path(path), config)
@@ -132,13 +139,13 @@ def lab(request: pytest.FixtureRequest):
     notebook = request.config.getoption("--notebook")
     if notebook is None:
         return importlib.import_module(f"solutions.{name}")
-    from robolab.grading.running.proxy import Limits, open_submission, reference_budget
+    from robolab.grading.running.proxy import Limits, open_submission, reference_limits
 
-    overrides = dict(getattr(request.module, "GRADING_LIMITS", None) or {})
-    reference = getattr(request.module, "REFERENCE_SECONDS", None)
-    if reference is not None and "total_wall_seconds" not in overrides:
-        # the submission's total call time: a few times the reference solution's
-        overrides["total_wall_seconds"] = reference_budget(Limits(**overrides), reference)
+    limits = Limits(**(getattr(request.module, "GRADING_LIMITS", None) or {}))
+    reference = getattr(request.module, "REFERENCE_CPU_SECONDS", None)
+    if reference is not None:
+        # the submission's total CPU time: a few times the reference solution's
+        limits = reference_limits(limits, reference)
     from robolab.grading.running.answers import Answers
 
     # While a test grades an exercise, the exercises below it answer as the reference.
@@ -146,10 +153,9 @@ def lab(request: pytest.FixtureRequest):
     grading = request.config.stash.setdefault(_grading_key, _Grading())
     grading.answers.append(answers)
     answers.exercise = grading.exercise
-    proxy = open_submission(
-        notebook, lab=name, limits=Limits(**overrides) if overrides else None, answers=answers
-    )
+    proxy = open_submission(notebook, lab=name, limits=limits, answers=answers)
     request.addfinalizer(proxy.close)
+    request.config.stash[_proxies_key].append(proxy)
     request.config.stash[_problems_key].extend(_plain(p) for p in getattr(proxy, "problems", []))
     return proxy
 
@@ -422,6 +428,17 @@ def failure_message(exc: BaseException | None, crash_message: str | None) -> str
     return text
 
 
+def _usage(proxies: list) -> dict | None:
+    """The submission's time and the limits that cut it short, over its proxies (one a lab)."""
+    usages = [p.usage() for p in proxies if callable(getattr(p, "usage", None))]
+    if not usages:
+        return None
+    total = {key: sum(u[key] for u in usages) for key in ("cpu_seconds", "awake_seconds")}
+    total["longest_call_cpu_seconds"] = max(u["longest_call_cpu_seconds"] for u in usages)
+    total["limits"] = [line for u in usages for line in u["limits"]]
+    return total
+
+
 def _plain(obj: Any) -> dict:
     if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
         return {
@@ -507,6 +524,7 @@ class GradingCollector:
             "exitstatus": exitstatus,
             "tests": settle(list(self.records.values())),
             "problems": self.config.stash[_problems_key],
+            "usage": _usage(self.config.stash[_proxies_key]),
             "collection_errors": self.collection_errors,
         }
         self.path.parent.mkdir(parents=True, exist_ok=True)

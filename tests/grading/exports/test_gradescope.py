@@ -62,7 +62,7 @@ def protect(source: Path) -> None:
 def run_autograder(home: Path) -> subprocess.CompletedProcess:
     env = dict(os.environ, ROBOLAB_AUTOGRADER_DIR=str(home), ROBOLAB_PYTHON=sys.executable)
     return subprocess.run(
-        ["bash", str(home / "run_autograder")], env=env, capture_output=True, text=True, timeout=300
+        ["bash", str(home / "run_autograder")], env=env, capture_output=True, text=True, timeout=900
     )
 
 

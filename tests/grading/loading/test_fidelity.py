@@ -112,7 +112,7 @@ def jupyter(tmp_path_factory) -> dict[str, tuple[bool, str]]:
             )
         client = nbclient.NotebookClient(
             combined,
-            timeout=120,
+            timeout=900,
             kernel_name="python3",
             allow_errors=True,
             resources={"metadata": {"path": str(tmp_path_factory.mktemp(f"jupyter-{lab}"))}},
@@ -196,8 +196,10 @@ def test_the_sleeping_scratch_cell_is_skipped(graded):
     sleepers = [v for v in VARIANTS if v.style == "scratch-sleep"]
     assert sleepers
     for variant in sleepers:
-        assert graded[variant.name].seconds < LONG_SLEEP, (
-            f"{variant.name} took {graded[variant.name].seconds:.0f} s to grade"
+        # Its worker was awake (running or sleeping, not waiting for a CPU) for less than
+        # the cell's sleep: the cell did not run, however loaded the machine.
+        assert graded[variant.name].awake_seconds < LONG_SLEEP, (
+            f"{variant.name}'s worker was awake {graded[variant.name].awake_seconds:.0f} s"
         )
 
 
