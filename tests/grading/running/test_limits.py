@@ -22,8 +22,8 @@ import pytest
 
 from robolab.grading.isolation import processes
 from robolab.grading.labs import discover_labs
+from robolab.grading.running.limits import BUDGET_FACTOR
 from robolab.grading.running.proxy import (
-    BUDGET_FACTOR,
     Limits,
     WorkerCrashed,
     WorkerTimeout,

@@ -434,13 +434,13 @@ def test_decoding_is_charged_to_the_call_that_sent_the_result(tmp_path, monkeypa
     # says each decode took 5 s turns a cheap call into a timeout naming the decoding.
     from dataclasses import replace
 
-    from robolab.grading.running import proxy
+    from robolab.grading.running import channel, proxy
     from tests.grading import TEST_LIMITS, write_notebook
 
     path = write_notebook(tmp_path / "sub.ipynb", "def half(x):\n    return x / 2\n")
     with proxy.open_submission(path, limits=replace(TEST_LIMITS, cpu_seconds=1)) as sub:
         assert sub.half(3.0) == 1.5
         ticks = iter(range(0, 1000, 5))
-        monkeypatch.setattr(proxy, "decode_clock", lambda: float(next(ticks)))
+        monkeypatch.setattr(channel, "decode_clock", lambda: float(next(ticks)))
         with pytest.raises(proxy.WorkerTimeout, match="decoding its result: 5.0 s"):
             sub.half(3.0)
