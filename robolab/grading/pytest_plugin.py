@@ -46,6 +46,7 @@ source lines.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib
 import json
@@ -136,6 +137,35 @@ def lab(request: pytest.FixtureRequest):
     request.addfinalizer(proxy.close)
     request.config.stash[_problems_key].extend(_plain(p) for p in getattr(proxy, "problems", []))
     return proxy
+
+
+@contextlib.contextmanager
+def _refusing(error: type[BaseException], bad_input: str) -> Iterator[None]:
+    if not isinstance(bad_input, str) or not bad_input.strip():
+        raise TypeError("refuses(error, bad_input): bad_input names the input, e.g. 'sigma = -1'")
+    try:
+        yield
+    except error:
+        return
+    pytest.fail(
+        f"expected {error.__name__} for {bad_input}, but the function returned normally: the "
+        "docstring asks to refuse such input with a clear error, not to compute on it",
+        pytrace=False,
+    )
+
+
+@pytest.fixture
+def refuses():
+    """A refusal check that names its bad input in the feedback::
+
+        with refuses(ValueError, "sigma_hit = -0.1 (a standard deviation must be > 0)"):
+            lab.p_hit(1.0, 1.0, 5.0, -0.1)
+
+    Passes when the block raises ``error`` (a subclass included); fails, naming
+    ``bad_input``, when it returns normally. Any other exception propagates, as
+    with ``pytest.raises`` (a stub's NotImplementedError stays "not implemented").
+    """
+    return _refusing
 
 
 # --- the grades marker ------------------------------------------------------------------------
@@ -287,14 +317,16 @@ def pytest_collection_modifyitems(
 # --- the results collector --------------------------------------------------------------------
 
 
+def title_of(doc: str | None) -> str:
+    """A docstring's first paragraph on one line: the check's title (a whole sentence)."""
+    paragraph = (doc or "").strip().split("\n\n")[0]
+    return " ".join(paragraph.split())
+
+
 def describe(item: pytest.Item) -> str:
-    """A test's name in words: its docstring's first line, else its name without ``test_``."""
-    doc = (getattr(getattr(item, "obj", None), "__doc__", None) or "").strip()
-    base = (
-        doc.splitlines()[0].strip()
-        if doc
-        else item.name.split("[")[0].removeprefix("test_").replace("_", " ")
-    )
+    """A test's name in words: its docstring's title, else its name without ``test_``."""
+    doc = getattr(getattr(item, "obj", None), "__doc__", None)
+    base = title_of(doc) or item.name.split("[")[0].removeprefix("test_").replace("_", " ")
     param = item.name[len(item.name.split("[")[0]) :]
     return base + (f" {param}" if param else "")
 

@@ -66,25 +66,25 @@ REFUSAL_NEEDS = ("test_normalize_sums_to_one", "test_normalize_known_values")
 
 @pytest.mark.grades("normalize", points=7)
 @pytest.mark.requires(*REFUSAL_NEEDS)
-def test_normalize_rejects_negative_weights(lab):
+def test_normalize_rejects_negative_weights(lab, refuses):
     """normalize: a negative weight raises ValueError"""
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "weights = (0.5, -0.1, 0.6), a negative weight"):
         lab.normalize(np.array([0.5, -0.1, 0.6]))
 
 
 @pytest.mark.grades("normalize", points=4)
 @pytest.mark.requires(*REFUSAL_NEEDS)
-def test_normalize_rejects_all_zero(lab):
+def test_normalize_rejects_all_zero(lab, refuses):
     """normalize: all-zero weights raise ValueError instead of dividing by zero"""
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "weights = four zeros, which cannot be normalized"):
         lab.normalize(np.zeros(4))
 
 
 @pytest.mark.grades("normalize", points=4)
 @pytest.mark.requires(*REFUSAL_NEEDS)
-def test_normalize_rejects_2d_input(lab):
+def test_normalize_rejects_2d_input(lab, refuses):
     """normalize: a 2-D array raises ValueError"""
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "weights of shape (2, 3), not one-dimensional"):
         lab.normalize(np.ones((2, 3)))
 
 
@@ -154,9 +154,9 @@ def test_mean_pose_across_the_seam(lab):
 
 @pytest.mark.grades("mean_pose", points=5)
 @pytest.mark.requires("test_mean_pose_of_aligned_poses")
-def test_mean_pose_rejects_wrong_shape(lab):
+def test_mean_pose_rejects_wrong_shape(lab, refuses):
     """mean_pose: poses of shape (N, 2) (no heading), or no poses at all (0, 3), raise ValueError"""
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "poses of shape (4, 2), without headings"):
         lab.mean_pose(np.ones((4, 2)))
-    with pytest.raises(ValueError):  # an empty array has no mean: not NaN
+    with refuses(ValueError, "poses of shape (0, 3): no poses have no mean (not NaN)"):
         lab.mean_pose(np.zeros((0, 3)))

@@ -524,12 +524,12 @@ def test_low_variance_resample_returns_copies_that_do_not_alias(lab):
 
 @pytest.mark.grades("low_variance_resample", points=3)
 @requires(*RESAMPLE_VALUES)
-def test_low_variance_resample_all_zero_weights_raise_value_error(lab):
+def test_low_variance_resample_all_zero_weights_raise_value_error(lab, refuses):
     """low_variance_resample: all-zero, NaN, infinite or negative weights raise ValueError"""
     # Documented contract: all-zero (or NaN / infinite / negative) weights raise ValueError.
     particles = np.array([[1.0, 2.0, 0.1], [3.0, 4.0, 0.2]])
     for bad in ([0.0, 0.0], [np.nan, 1.0], [np.inf, 1.0], [-0.5, 1.0]):
-        with pytest.raises(ValueError):
+        with refuses(ValueError, f"weights = {bad}"):
             lab.low_variance_resample(particles, np.array(bad), np.random.default_rng(0))
 
 
