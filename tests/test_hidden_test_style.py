@@ -3,9 +3,15 @@
 A hidden test's failure is all a student sees of it (the grader never shows its
 source), so, read from the AST of ``tests/labs/test_<lab>.py``:
 
-- every test function has a docstring (its first line is the check's title);
+- every test function has a docstring whose first paragraph, the check's title in
+  the feedback, is a whole sentence (it ends with a period);
 - every ``assert`` statement has a message;
-- every ``numpy.testing.assert_*`` call has ``err_msg=``.
+- every ``numpy.testing.assert_*`` call has ``err_msg=``;
+- no ``numpy.testing.assert_*`` compares an error (a difference, ``angle_diff``) with
+  0: numpy prints the error as ACTUAL against DESIRED 0, so the student reads their
+  error as their result; assert its size with a message that calls it an error;
+- refusals go through the ``refuses`` fixture, which names the bad input when the
+  function accepts it (``pytest.raises`` can only say "DID NOT RAISE").
 """
 
 from __future__ import annotations
@@ -15,19 +21,17 @@ from pathlib import Path
 
 import pytest
 
+from robolab.grading.labs import discover_labs
+from robolab.grading.pytest_plugin import title_of
+
 LABS_DIR = Path(__file__).resolve().parent / "labs"
 #: Labs whose hidden tests follow the rules; a lab joins once its tests are rewritten.
-ENFORCED = [
-    "frames",
-    "bayes",
-    "beam_model",
-    "landmark_pf",
-    "demo",
-    "odometry_mapping",
-    "mcl",
-    "ekf_mapping",
-    "fastslam",
-]
+ENFORCED = [lab.name for lab in discover_labs() if lab.hidden_tests.is_file()]
+#: How a title may end: a whole sentence.
+SENTENCE_ENDS = (".", "?", "!")
+#: Functions whose result is an error between two values (compared with 0, it is printed
+#: as the student's ACTUAL result).
+ERROR_FUNCTIONS = {"angle_diff", "wrap_angle", "wrap", "abs", "absolute", "norm", "hypot"}
 #: numpy.testing functions without an err_msg parameter.
 NO_ERR_MSG = {"assert_raises", "assert_raises_regex", "assert_warns", "assert_no_warnings"}
 
@@ -49,6 +53,30 @@ def _numpy_testing_asserts(tree: ast.Module) -> set[str]:
     return names
 
 
+def _is_zero(node: ast.AST) -> bool:
+    return isinstance(node, ast.Constant) and not isinstance(node.value, bool) and node.value == 0
+
+
+def _is_error(node: ast.AST) -> bool:
+    """A difference of two values: ``a - b``, ``angle_diff(a, b)``, ``np.abs(a - b)``."""
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Sub):
+        return True
+    if isinstance(node, ast.Call):
+        leaf = _dotted(node.func).rsplit(".", 1)[-1].lstrip("_")
+        differs = leaf == "angle_diff" or any(_is_error(a) for a in node.args)
+        return leaf in ERROR_FUNCTIONS and differs
+    return False
+
+
+def _compares_an_error(actual: ast.AST, desired: ast.AST) -> bool:
+    """``error`` against 0, or ``cos(a - b)`` against 1 (an angle error in disguise)."""
+    if _is_error(actual) and _is_zero(desired):
+        return True
+    cosine = isinstance(actual, ast.Call) and _dotted(actual.func).rsplit(".", 1)[-1] == "cos"
+    one = isinstance(desired, ast.Constant) and desired.value == 1
+    return cosine and one and any(_is_error(a) for a in actual.args)
+
+
 def style_problems(path: Path) -> list[str]:
     """Every break of the rules in one hidden test module, as ``line: what``."""
     tree = ast.parse(path.read_text(), filename=str(path))
@@ -58,8 +86,14 @@ def style_problems(path: Path) -> list[str]:
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.name.startswith(
             "test_"
         ):
-            if not (ast.get_docstring(node) or "").strip():
+            title = title_of(ast.get_docstring(node))
+            if not title:
                 problems.append(f"{node.lineno}: test {node.name} has no docstring")
+            elif not title.endswith(SENTENCE_ENDS):
+                problems.append(
+                    f"{node.lineno}: test {node.name}: its title (the docstring's first "
+                    f"paragraph) is not a whole sentence ending with a period: {title[-60:]!r}"
+                )
         elif isinstance(node, ast.Assert) and node.msg is None:
             problems.append(f"{node.lineno}: assert without a message: {ast.unparse(node)[:80]}")
         elif isinstance(node, ast.Call):
@@ -69,6 +103,24 @@ def style_problems(path: Path) -> list[str]:
             if (via_module or name in bare) and leaf not in NO_ERR_MSG:
                 if not any(k.arg == "err_msg" for k in node.keywords):
                     problems.append(f"{node.lineno}: {name}(...) without err_msg=")
+                if len(node.args) >= 2 and _compares_an_error(node.args[0], node.args[1]):
+                    problems.append(
+                        f"{node.lineno}: {name}(error, 0) prints the error as ACTUAL against "
+                        "DESIRED 0: assert the error's size, with a message naming it an error"
+                    )
+            if name == "pytest.raises" or name == "raises":
+                problems.append(
+                    f"{node.lineno}: pytest.raises cannot name the bad input in the feedback: "
+                    'use the refuses fixture, `with refuses(ValueError, "sigma = -1"):`'
+                )
+            if leaf == "refuses" and not (
+                len(node.args) == 2
+                and isinstance(node.args[1], (ast.Constant, ast.JoinedStr))
+                and (not isinstance(node.args[1], ast.Constant) or str(node.args[1].value).strip())
+            ):
+                problems.append(
+                    f"{node.lineno}: refuses(error, bad_input) names the bad input in words"
+                )
     return problems
 
 
@@ -81,19 +133,39 @@ def test_hidden_tests_explain_themselves(lab):
 
 
 def test_the_style_check_catches_each_rule(tmp_path):
-    """The checker itself finds a missing docstring, a bare assert and an assert_allclose."""
+    """The checker finds each broken rule once, and nothing in a test that keeps them all."""
     bad = tmp_path / "test_bad.py"
     bad.write_text(
         "import numpy as np\n"
+        "import pytest\n"
         "from numpy.testing import assert_array_equal as aae\n"
-        "def test_a(lab):\n"
+        "def test_a(lab, refuses):\n"
         "    assert lab.f() == 1\n"
         "    np.testing.assert_allclose(lab.f(), 1)\n"
         "    aae(lab.f(), 1)\n"
+        "    with pytest.raises(ValueError):\n"
+        "        lab.f(-1)\n"
+        "    with refuses(ValueError, ''):\n"
+        "        lab.f(-1)\n"
         "def test_b(lab):\n"
-        '    """has a docstring"""\n'
+        '    """has a docstring\n'
+        '    cut at its first line"""\n'
+        '    np.testing.assert_allclose(angle_diff(lab.f(), 1.0), 0.0, err_msg="f()")\n'
+        '    np.testing.assert_allclose(lab.f() - 1.0, 0, err_msg="f()")\n'
+        '    np.testing.assert_allclose(np.cos(lab.f() - 1.0), 1.0, err_msg="f()")\n'
+        "def test_c(lab, refuses):\n"
+        '    """Keeps every rule: a whole sentence,\n'
+        '    over two lines.\n\n    More words.\n    """\n'
         '    assert lab.f() == 1, "f() == 1"\n'
         '    np.testing.assert_allclose(lab.f(), 1, err_msg="f()")\n'
+        '    np.testing.assert_allclose(abs(lab.f()), 0.0, err_msg="|f()| = 0, not an error")\n'
+        '    with refuses(ValueError, f"x = {-1}"):\n'
+        "        lab.f(-1)\n"
     )
     found = style_problems(bad)
-    assert len(found) == 4, f"expected 4 problems (docstring, assert, 2 calls), got {found}"
+    lines = sorted(int(p.split(":")[0]) for p in found)
+    # 4: no docstring; 5: bare assert; 6, 7: no err_msg; 8: pytest.raises; 10: empty input;
+    # 12: a title that is no sentence; 15, 16, 17: an error compared with 0 (or cos with 1)
+    assert lines == [4, 5, 6, 7, 8, 10, 12, 15, 16, 17], (
+        f"expected one problem per broken rule: {found}"
+    )

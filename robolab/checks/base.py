@@ -109,3 +109,25 @@ def where_wrong(z, got, expected, marks: dict, normaliser: str) -> str | None:
         return f"off by the same factor {ratio[0]:.6g} at every reading: {normaliser}"
     shown = "; ".join(at(i) for i in wrong[:3])
     return f"wrong at {wrong.size} of {z.size} readings, e.g. {shown}"
+
+
+def angle_error(got, expected, atol: float) -> str | None:
+    """None when the angles ``got`` and ``expected`` agree modulo 2 pi within ``atol``.
+
+    Otherwise a sentence naming the largest error (not the angle) and where it is,
+    with the angle got and the angle expected there: printing the error as the
+    result would make a student read their error as what their function returned.
+    """
+    g = np.asarray(got, dtype=float)
+    e = np.broadcast_to(np.asarray(expected, dtype=float), g.shape)
+    err = np.abs((g - e + np.pi) % (2 * np.pi) - np.pi)
+    err = np.where(np.isnan(err), np.inf, err)
+    if err.size == 0 or err.max() <= atol:
+        return None
+    i = np.unravel_index(int(np.argmax(err)), err.shape)
+    where = f" at index {i[0] if len(i) == 1 else tuple(int(k) for k in i)}" if i else ""
+    size = f"reaches {err[i]:.3g} rad" if np.isfinite(err[i]) else "is not a number"
+    return (
+        f"the angle error {size}{where} (tolerance {atol:g}): got "
+        f"{g[i]:.6g} rad, expected {e[i]:.6g} rad (modulo 2 pi)"
+    )

@@ -272,7 +272,8 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     waiting = [n for n in required_of(pyfuncitem) if (module, n) in failed]
     if waiting:
         titles = {
-            _base_name(it): describe(it).split(" [")[0]
+            _base_name(it): title_of(getattr(getattr(it, "obj", None), "__doc__", None))
+            or _base_name(it)
             for it in pyfuncitem.session.items
             if it.nodeid.split("::")[0] == module and _base_name(it) in waiting
         }
@@ -469,7 +470,7 @@ class GradingCollector:
 
 
 def _label(record: dict) -> str:
-    return f"\"{record['description']}\""
+    return f'"{record["description"]}"'
 
 
 def settle(records: list[dict]) -> list[dict]:

@@ -139,7 +139,9 @@ def test_p_hit_integrates_to_one(lab, z_star, z_max, sigma):
     # rule's error (h^4 f'''' z_max / 180) is below 1e-12.
     z = np.linspace(0.0, z_max, 200001)
     f = _f(lab.p_hit(z, z_star, z_max, sigma))
-    assert f.shape == z.shape, f"p_hit of {z.size} readings: expected shape {z.shape}, got {f.shape}"
+    assert f.shape == z.shape, (
+        f"p_hit of {z.size} readings: expected shape {z.shape}, got {f.shape}"
+    )
     wrong = where_wrong(
         z,
         f,
@@ -216,7 +218,7 @@ def test_p_hit_support_and_continuity(lab):
 @grades("p_hit", points=2)
 @requires("test_p_hit_reference_values_and_broadcasting")
 def test_p_hit_rejects_bad_input(lab, refuses):
-    """p_hit: sigma <= 0, z* beyond z_max or negative, shapes that do not broadcast: ValueError"""
+    """p_hit: sigma <= 0, z* beyond z_max or negative, shapes that do not broadcast: ValueError."""
     with refuses(ValueError, "sigma_hit = -0.1 (a standard deviation must be > 0)"):
         lab.p_hit(1.0, 1.0, 5.0, -0.1)
     with refuses(ValueError, "sigma_hit = 0 (a standard deviation must be > 0)"):
@@ -375,7 +377,7 @@ def test_p_rand_uniform_on_half_open_range(lab):
 
 @grades("p_rand", points=2)
 def test_p_rand_keeps_the_shape_of_z(lab):
-    """p_rand of a (3, 4) array of readings is a (3, 4) array"""
+    """p_rand of a (3, 4) array of readings is a (3, 4) array."""
     got = _f(lab.p_rand(np.full((3, 4), 1.0), 2.0))
     assert got.shape == (3, 4), f"z of shape (3, 4): expected shape (3, 4), got {got.shape}"
     np.testing.assert_allclose(
@@ -611,11 +613,14 @@ def test_ranks_true_expected_ranges_first(lab):
 @grades("beam_range_finder_model", points=2)
 @requires(*MODEL_VALUES)
 def test_beam_model_rejects_bad_params(lab, refuses):
-    """beam_range_finder_model: weights not summing to 1, a negative weight, sigma or lambda <= 0"""
+    """beam_range_finder_model: weights not summing to 1, a negative weight, sigma, lambda <= 0."""
     z, z_star = np.array([1.0, 2.0, 3.0]), np.array([1.0, 2.5, 3.0])
     for what, bad in (
         ("z_hit = 0.9, so that the weights sum to 1.2", dict(PARAMS, z_hit=0.9)),
-        ("z_max = -0.05, a negative weight (the sum is still 1)", dict(PARAMS, z_hit=0.8, z_max=-0.05)),
+        (
+            "z_max = -0.05, a negative weight (the sum is still 1)",
+            dict(PARAMS, z_hit=0.8, z_max=-0.05),
+        ),
         ("sigma_hit = -0.2", dict(PARAMS, sigma_hit=-0.2)),
         ("lambda_short = 0", dict(PARAMS, lambda_short=0.0)),
         ("max_range = -5", dict(PARAMS, max_range=-5.0)),
@@ -627,7 +632,7 @@ def test_beam_model_rejects_bad_params(lab, refuses):
 @grades("beam_range_finder_model", points=3)
 @requires(*MODEL_VALUES)
 def test_beam_model_rejects_bad_readings_and_shapes(lab, refuses):
-    """beam_range_finder_model: readings outside [0, max_range], z* beyond it, shape mismatches"""
+    """beam_range_finder_model: readings outside [0, max_range], z* beyond it, shape mismatches."""
     z, z_star = np.array([1.0, 2.0, 3.0]), np.array([1.0, 2.5, 3.0])
     for bad_z in ([1.0, 5.5, 3.0], [1.0, -0.1, 3.0]):  # map no-returns to max_range first
         with refuses(ValueError, f"z = {bad_z}, a reading outside [0, max_range = 5]"):
@@ -729,7 +734,9 @@ def test_likelihood_map_rejects_bad_input(lab, refuses, maze):
         lab.pose_likelihood_map(scan[:-1], maze, BEAMS, MAZE_PARAMS, np.ones((2, 2)), np.zeros(1))
     with refuses(ValueError, "positions of shape (2, 3), not (P, 2)"):
         lab.pose_likelihood_map(scan, maze, BEAMS, MAZE_PARAMS, np.ones((2, 3)), np.zeros(1))
-    with refuses(ValueError, "params with z_hit = 0.5, so that the mixture weights do not sum to 1"):
+    with refuses(
+        ValueError, "params with z_hit = 0.5, so that the mixture weights do not sum to 1"
+    ):
         lab.pose_likelihood_map(
             scan, maze, BEAMS, dict(MAZE_PARAMS, z_hit=0.5), np.ones((2, 2)), np.zeros(1)
         )

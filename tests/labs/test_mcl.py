@@ -28,6 +28,7 @@ import math
 import numpy as np
 import pytest
 
+from robolab.checks.base import angle_error
 from robolab.geometry import compose, wrap_angle
 from robolab.maps import UNKNOWN, OccupancyGrid
 from robolab.raycast import cast_rays
@@ -332,11 +333,9 @@ def test_motion_model_across_the_pi_seam(lab):
         "0.283, "
         "rot2 = 0.1) against the same motion from heading 0.3, same random draws",
     )
-    np.testing.assert_allclose(
-        wrap_angle(a[:, 2] - b[:, 2]),
-        0.0,
-        atol=1e-9,
-        err_msg="headings: the same motion across the seam and away from it, same random draws",
+    wrong = angle_error(a[:, 2], b[:, 2], atol=1e-09)
+    assert wrong is None, (
+        "headings: the same motion across the seam and away from it, same random draws: " + wrong
     )
 
 
@@ -439,11 +438,9 @@ def test_motion_model_noise_free_and_bad_input(lab, refuses):
         atol=1e-9,
         err_msg="noise-free: positions = compose(particle, odometry motion in the odom frame)",
     )
-    np.testing.assert_allclose(
-        np.cos(moved[:, 2] - compose(particles, rel)[:, 2]),
-        1.0,
-        atol=1e-9,
-        err_msg="noise-free: headings = particle heading + odometry heading change (modulo 2 pi)",
+    wrong = angle_error(moved[:, 2], compose(particles, rel)[:, 2], atol=1e-6)
+    assert wrong is None, (
+        "noise-free: headings = particle heading + odometry heading change (modulo 2 pi): " + wrong
     )
     assert np.all((moved[:, 2] >= -np.pi) & (moved[:, 2] < np.pi)), "headings must be wrapped"
     with refuses(ValueError, "alphas = (0.1, -0.1, 0.1, 0.1), a negative noise parameter"):

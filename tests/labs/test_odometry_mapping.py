@@ -837,7 +837,10 @@ def test_logodds_update_bad_input(lab, refuses):
     del bad["beta"]
     with refuses(ValueError, "inverse_sensor_model_params without 'beta'"):
         lab.logodds_update(np.zeros((10, 10)), scan, np.array([0.5, 0.5, 0.0]), grid, bad)
-    with refuses(ValueError, "inverse_sensor_model_params with alpha = 0 (the obstacle thickness must be > 0)"):
+    with refuses(
+        ValueError,
+        "inverse_sensor_model_params with alpha = 0 (the obstacle thickness must be > 0)",
+    ):
         lab.logodds_update(
             np.zeros((10, 10)), scan, np.array([0.5, 0.5, 0.0]), grid, {**PARAMS, "alpha": 0.0}
         )
