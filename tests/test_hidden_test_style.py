@@ -17,6 +17,7 @@ source), so, read from the AST of ``tests/labs/test_<lab>.py``:
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -169,3 +170,98 @@ def test_the_style_check_catches_each_rule(tmp_path):
     assert lines == [4, 5, 6, 7, 8, 10, 12, 15, 16, 17], (
         f"expected one problem per broken rule: {found}"
     )
+
+
+# --- refusals are promised by the docstring the student reads --------------------------------
+
+LABS_WITH_STUBS = [
+    lab for lab in discover_labs() if lab.hidden_tests.is_file() and lab.notebook is not None
+]
+
+
+def _stub_docstrings(lab) -> dict[str, ast.FunctionDef]:
+    import nbformat
+
+    from robolab.grading.labs import exercise_cells
+
+    nb = nbformat.read(str(lab.notebook), as_version=4)
+    return {f.name: f for _, funcs in exercise_cells(nb) for f in funcs}
+
+
+def raises_section(doc: str) -> str:
+    """The numpy-style ``Raises`` section of a docstring ("" without one)."""
+    lines = doc.splitlines()
+    for i, line in enumerate(lines[:-1]):
+        if line.strip() == "Raises" and set(lines[i + 1].strip()) == {"-"}:
+            body = []
+            for j in range(i + 2, len(lines)):
+                if (
+                    j + 1 < len(lines)
+                    and lines[j + 1].strip()
+                    and set(lines[j + 1].strip()) == {"-"}
+                ):
+                    break  # the next section's header
+                body.append(lines[j])
+            return "\n".join(body)
+    return ""
+
+
+def refusals(path: Path) -> list[tuple[int, str, str, str]]:
+    """Every ``with refuses(Error, "input"):`` block: (line, error, input text, exercise called)."""
+    tree = ast.parse(path.read_text(), filename=str(path))
+    found = []
+    for node in ast.walk(tree):
+        if not isinstance(node, ast.With):
+            continue
+        for item in node.items:
+            call = item.context_expr
+            if not (isinstance(call, ast.Call) and _dotted(call.func) == "refuses"):
+                continue
+            error = _dotted(call.args[0]) if call.args else ""
+            text = ast.unparse(call.args[1]) if len(call.args) > 1 else ""
+            called = [
+                sub.func.attr
+                for stmt in node.body
+                for sub in ast.walk(stmt)
+                if isinstance(sub, ast.Call)
+                and isinstance(sub.func, ast.Attribute)
+                and _dotted(sub.func.value) == "lab"
+            ]
+            found.append((node.lineno, error, text, called[0] if called else ""))
+    return found
+
+
+@pytest.mark.parametrize("lab", LABS_WITH_STUBS, ids=lambda lab: lab.name)
+def test_every_refusal_is_documented_and_named(lab):
+    """Each refusal a hidden test demands is in the stub's Raises section and names the input.
+
+    A student can only refuse what the docstring they read asks them to refuse; and
+    when their function accepts the input, the feedback must say which input it was
+    (a parameter of the exercise, by name).
+    """
+    stubs = _stub_docstrings(lab)
+    problems = []
+    for line, error, text, called in refusals(lab.hidden_tests):
+        stub = stubs.get(called)
+        if stub is None:
+            problems.append(f"{line}: refuses(...) calls no exercise of the lab ({called!r})")
+            continue
+        raises = raises_section(ast.get_docstring(stub) or "")
+        if not re.search(rf"^\s*{error.rsplit('.', 1)[-1]}\b", raises, re.MULTILINE):
+            problems.append(
+                f"{line}: a test demands {error} from {called}, whose stub docstring has no "
+                f"Raises entry for it"
+            )
+        params = [a.arg for a in stub.args.posonlyargs + stub.args.args + stub.args.kwonlyargs]
+        if not any(re.search(rf"(?<![\w.]){re.escape(p)}\b", text) for p in params):
+            problems.append(
+                f"{line}: refuses({error}, {text}) names none of {called}'s parameters {params}"
+            )
+    assert not problems, f"{lab.hidden_tests.name}:\n  " + "\n  ".join(problems)
+
+
+def test_raises_section_reads_numpy_style():
+    """The Raises reader takes the section's body up to the next section header."""
+    doc = "Sum.\n\nRaises\n------\nValueError\n    If x < 0.\n\nNotes\n-----\nTypeError here."
+    assert raises_section(doc).split() == ["ValueError", "If", "x", "<", "0."], raises_section(doc)
+    assert raises_section("No sections.") == "", "a docstring without Raises has an empty one"
