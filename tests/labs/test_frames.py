@@ -245,11 +245,29 @@ def test_scan_to_cartesian_at_the_bounds_of_the_valid_interval(lab):
 
 @grades("scan_to_cartesian", points=3)
 def test_scan_to_cartesian_no_valid_beam_gives_empty_points(lab):
-    """scan_to_cartesian: a scan with no valid beam gives an empty (0, 2) array, not an error."""
+    """scan_to_cartesian: no valid beam gives an empty (0, 2) array; one beam gives one point.
+
+    The smallest scans: nothing to return must not be an error, and a scan of a single
+    beam is still a (1, 2) array of that beam's endpoint.
+    """
     out = _f(lab.scan_to_cartesian([np.inf, 0.0, np.nan, 20.0], [0.0, 0.1, 0.2, 0.3], 0.1, 10.0))
     assert out.shape == (0, 2), (
         f"ranges [inf, 0, nan, 20] with range_max 10: no valid beam, expected shape (0, 2), "
         f"got {out.shape}"
+    )
+    one = _f(lab.scan_to_cartesian([2.0], [np.pi / 2], 0.1, 10.0))
+    np.testing.assert_allclose(
+        one,
+        [[0.0, 2.0]],
+        atol=1e-12,
+        err_msg="a scan of one beam, 2 m at pi/2: expected one endpoint [[0, 2]] of shape (1, 2)",
+    )
+    one = _f(lab.scan_to_cartesian([3.0, np.inf], [0.0, 0.5], 0.1, 10.0))
+    np.testing.assert_allclose(
+        one,
+        [[3.0, 0.0]],
+        atol=1e-12,
+        err_msg="ranges [3, inf] at angles [0, 0.5]: one valid beam, expected [[3, 0]]",
     )
 
 
@@ -327,7 +345,7 @@ def test_transform_points_matches_library_on_random_input(lab):
     for p in (1, 5, 400):
         points = rng.normal(0.0, 4.0, (p, 2))
         pose = np.array([rng.uniform(-10, 10), rng.uniform(-10, 10), rng.uniform(-np.pi, np.pi)])
-        out = _f(lab.transform_points(points, pose))
+        out = _f(lab.transform_points(points.copy(), pose.copy()))
         assert out.shape == (p, 2), f"{p} points and one pose: expected ({p}, 2), got {out.shape}"
         np.testing.assert_allclose(
             out,
@@ -342,13 +360,15 @@ def test_transform_points_invariants(lab):
     """transform_points: identity changes nothing, distances kept, frames chain, input untouched."""
     rng = np.random.default_rng(3)
     points = rng.uniform(-5.0, 5.0, (50, 2))
+    # every call gets its own copy: a function that changes its input cannot change the
+    # values this test compares with
     np.testing.assert_allclose(
-        _f(lab.transform_points(points, [0.0, 0.0, 0.0])),
+        _f(lab.transform_points(points.copy(), [0.0, 0.0, 0.0])),
         points,
         atol=1e-12,
         err_msg="50 points and the identity pose (0, 0, 0): expected the points unchanged",
     )
-    out = _f(lab.transform_points(points, [3.0, -2.0, 2.5]))
+    out = _f(lab.transform_points(points.copy(), [3.0, -2.0, 2.5]))
     d_in = np.linalg.norm(points[:, None] - points[None], axis=-1)
     d_out = np.linalg.norm(out[:, None] - out[None], axis=-1)
     np.testing.assert_allclose(
@@ -359,7 +379,7 @@ def test_transform_points_invariants(lab):
         "between points",
     )
     a, b = np.array([0.1, 0.05, 0.3]), np.array([2.0, 1.0, -2.8])
-    twice = _f(lab.transform_points(_f(lab.transform_points(points, a)), b))
+    twice = _f(lab.transform_points(_f(lab.transform_points(points.copy(), a.copy())), b.copy()))
     np.testing.assert_allclose(
         twice,
         oracle_transform(points, compose(b, a)),
@@ -367,11 +387,11 @@ def test_transform_points_invariants(lab):
         err_msg="transforming by a = (0.1, 0.05, 0.3), then by b = (2, 1, -2.8): expected the "
         "same as one transform by the composed pose b * a",
     )
-    before = points.copy()
-    lab.transform_points(points, [1.0, 1.0, 1.0])
+    given = points.copy()
+    lab.transform_points(given, [1.0, 1.0, 1.0])
     np.testing.assert_array_equal(
+        given,
         points,
-        before,
         err_msg="transform_points(points, (1, 1, 1)) changed its points argument in place: "
         "expected the input unchanged (compute a new array)",
     )
@@ -476,7 +496,10 @@ def test_pose_at_hand_computed(lab):
 
 @grades("pose_at", points=4)
 def test_pose_at_recorded_stamps_give_recorded_poses(lab):
-    """pose_at: at each recorded stamp, the first and the last included, the recorded pose."""
+    """pose_at: at each recorded stamp, the first and the last included, the recorded pose.
+
+    Also on the smallest track, a single recorded pose, queried at its own stamp.
+    """
     rng = np.random.default_rng(5)
     stamps = np.cumsum(rng.uniform(0.01, 0.2, 40)) + 1.7e9  # ROS times are large numbers
     poses = np.column_stack([rng.normal(0, 3, (40, 2)), rng.uniform(-np.pi, np.pi, 40)])
@@ -498,6 +521,21 @@ def test_pose_at_recorded_stamps_give_recorded_poses(lab):
             err_msg=f"scalar t = {t!r}, a recorded stamp at the end of the track: expected "
             "the recorded pose",
         )
+    single = _f(lab.pose_at(np.array([5.0]), np.array([[1.0, -2.0, 3.0]]), 5.0))
+    np.testing.assert_allclose(
+        single,
+        [1.0, -2.0, 3.0],
+        atol=1e-12,
+        err_msg="a track of one pose (1, -2, 3) at 5 s, queried at t = 5: expected that pose",
+    )
+    single = _f(lab.pose_at(np.array([5.0]), np.array([[1.0, -2.0, 3.0]]), np.array([5.0, 5.0])))
+    np.testing.assert_allclose(
+        single,
+        [[1.0, -2.0, 3.0]] * 2,
+        atol=1e-12,
+        err_msg="a track of one pose (1, -2, 3) at 5 s, queried at t = [5, 5]: expected that "
+        "pose twice, shape (2, 3)",
+    )
 
 
 @grades("pose_at", points=6)

@@ -459,7 +459,9 @@ def test_low_variance_resample_one_dominant_weight(lab):
     weights = np.full(100, 1e-12)
     weights[37] = 1.0
     for seed in range(3):
-        got = _f(lab.low_variance_resample(particles, weights, np.random.default_rng(seed)))
+        got = _f(
+            lab.low_variance_resample(particles.copy(), weights.copy(), np.random.default_rng(seed))
+        )
         np.testing.assert_array_equal(
             got,
             np.tile(particles[37], (100, 1)),
@@ -641,6 +643,19 @@ def test_particle_filter_history(lab):
     assert path.shape == (6, 2), (
         f"5 steps: expected history['path'] of shape (6, 2), got {path.shape}"
     )
+    # a value, so that consistent but empty histories (all zeros) earn nothing
+    np.testing.assert_allclose(
+        path[0],
+        [10.0, 15.0],
+        atol=1e-12,
+        err_msg="history['path'][0]: expected the default initial_pose's position (10, 15)",
+    )
+    first = _f(out["predicted"])[0, :, :2].mean(axis=0)
+    # forward noise 5 over 300 particles: SE 0.29 per coordinate, 5 SE = 1.5
+    assert np.all(np.abs(first - [70.0, 15.0]) < 1.5), (
+        f"history['predicted'][0]: 300 particles from (10, 15, 0) moved 60 ahead: expected "
+        f"their mean within 1.5 of (70, 15), got {np.round(first, 2)}"
+    )
     for key in ("predicted", "resampled"):
         h = _f(out[key])
         assert h.shape == (5, 300, 3), (
@@ -674,6 +689,12 @@ def test_particle_filter_keeps_the_predicted_cloud_when_every_weight_vanishes(la
     path, weights = _f(out["path"]), _f(out["weights"])
     assert path.shape == (6, 2) and np.all(np.isfinite(path)), (
         f"a step whose every weight is 0: expected a finite path of shape (6, 2), got {path}"
+    )
+    np.testing.assert_allclose(
+        path[0],
+        [10.0, 15.0],
+        atol=1e-12,
+        err_msg="history['path'][0]: expected the default initial_pose's position (10, 15)",
     )
     assert np.all(weights[2] == 0), (
         f"test setup: ranges of 10 km with sensor noise 5 must give weight 0 everywhere, got "

@@ -2,9 +2,10 @@
 
 Per lab, one batch is graded through the real grader (``robolab.grading.runner``,
 two at a time): the solved notebook (must earn 100), the mutants packed into
-notebooks (see ``build.py``: each must lose points on its own exercise), and two
-"free points" notebooks, every exercise raising ValueError and every exercise
-returning its first argument (both must earn 0, in every lab with a notebook).
+notebooks (see ``build.py``: each must lose points on its own exercise), and the
+"free points" notebooks (``build.FREE_POINTS``: every exercise raising ValueError,
+returning its first argument, returning zeros of the right shape, or zeroing its
+inputs in place and returning the first; each must earn 0, in every lab).
 """
 
 from __future__ import annotations
@@ -100,7 +101,7 @@ FREE_POINTS_PENDING: set[str] = set()
 
 @functools.lru_cache(maxsize=None)
 def graded(lab_name: str) -> dict:
-    """Grade the lab's batch once: ``{"correct", "raises", "echo", "packs": [(group, result)]}``."""
+    """Grade the lab's batch once: ``{"correct", <each free-points kind>, "packs": [...]}``."""
     from robolab.grading.runner import grade_all
 
     lab = find_lab(lab_name)
@@ -110,9 +111,7 @@ def graded(lab_name: str) -> dict:
         folder = Path(tmp)
         notebooks = {
             "correct": base,
-            "raises": build.free_points_variant(lab, "raises"),
-            "echo": build.free_points_variant(lab, "echo"),
-        }
+        } | {kind: build.free_points_variant(lab, kind) for kind in build.FREE_POINTS}
         notebooks |= {
             f"pack{i:02d}": build.pack_notebook(lab, g, base) for i, g in enumerate(groups)
         }
@@ -125,8 +124,7 @@ def graded(lab_name: str) -> dict:
     by_key = dict(zip(notebooks, results, strict=True))
     return {
         "correct": by_key["correct"],
-        "raises": by_key["raises"],
-        "echo": by_key["echo"],
+        **{kind: by_key[kind] for kind in build.FREE_POINTS},
         "packs": [(g, by_key[f"pack{i:02d}"]) for i, g in enumerate(groups)],
     }
 
@@ -208,17 +206,18 @@ def test_each_mutant_loses_points_on_its_own_exercise(mutant):
 FREE_LABS = [lab.name for lab in LABS]
 
 
-@pytest.mark.parametrize("kind", ["raises", "echo"])
+@pytest.mark.parametrize("kind", sorted(build.FREE_POINTS))
 @pytest.mark.parametrize("lab", FREE_LABS)
 def test_free_points_notebooks_earn_nothing(lab, kind):
-    """Exercises that only raise ValueError, or only return their first argument, earn 0."""
+    """Exercises that only raise, echo their input, return zeros or zero their inputs earn 0."""
     if lab in FREE_POINTS_PENDING:
         pytest.xfail(f"lab {lab}: its hidden tests are not gated yet")
     result = graded(lab)[kind]
     assert not result.errors, f"lab {lab}, {kind}: grading failed: {result.errors}"
     kept = [f"{t.exercise}: {t.description} ({t.points:g})" for t in result.tests if t.passed]
     assert result.total == 0, (
-        f"lab {lab}: a notebook whose every exercise {kind} earned {result.total:g} points, "
+        f"lab {lab}: a notebook whose every exercise {build.FREE_POINTS[kind]} earned "
+        f"{result.total:g} points, "
         f"expected 0; passing: {kept}"
     )
 
