@@ -113,7 +113,7 @@ def test_wrap_half_turn_is_minus_pi(lab):
 def test_wrap_array(lab):
     """wrap: an array of angles is wrapped elementwise into [-pi, pi) without changing direction."""
     angles = np.linspace(-20.0, 20.0, 101)
-    got = _floats(lab.wrap(angles))
+    got = _floats(lab.wrap(angles.copy()))
     assert got.shape == angles.shape, f"expected shape {angles.shape}, got {got.shape}"
     assert np.all((got >= -math.pi) & (got < math.pi)), (
         f"expected every angle in [-pi, pi), got range [{got.min()!r}, {got.max()!r}]"

@@ -427,7 +427,13 @@ def test_update_map_leaves_its_input_alone(lab):
     before = grid.copy()
     out = _f(lab.update_map(grid, [12.3, 5.2, 0.4], np.full(36, 4.0)))
     np.testing.assert_array_equal(grid, before, err_msg="update_map modified the map passed in")
-    assert not np.array_equal(out, before), "a 36-beam scan of 4-unit ranges must change some cells"
+    np.testing.assert_allclose(
+        out,
+        before + _ism_oracle((30, 25), np.array([12.3, 5.2, 0.4]), np.full(36, 4.0)),
+        atol=1e-12,
+        err_msg="a 36-beam scan of 4-unit ranges from (12.3, 5.2, 0.4) on a random map: "
+        "expected the map plus the inverse sensor model",
+    )
 
 
 @pytest.mark.grades("update_map", points=4)
@@ -753,6 +759,17 @@ def test_ekf_step_from_an_empty_map_corrects_in_the_new_map(lab):
     G = np.eye(3)
     G[0, 2], G[1, 2] = -v * np.sin(_X0[2]) * dt, v * np.cos(_X0[2]) * dt
     predicted = G @ _P0 @ G.T + _Q
+    np.testing.assert_allclose(
+        _f(new_map),
+        _ism_oracle((40, 40), _g(_X0, *_CMD), scan),
+        atol=1e-12,
+        err_msg="from an empty map: expected the returned map to be this scan's inverse sensor "
+        "model at the predicted pose",
+    )
+    assert np.all(np.linalg.eigvalsh(_f(cov)) > 0), (
+        f"the covariance after the step must stay positive definite, got eigenvalues "
+        f"{np.linalg.eigvalsh(_f(cov))}"
+    )
     got = np.trace(_f(cov)[:2, :2])
     assert got < 0.5 * np.trace(predicted[:2, :2]), (
         f"from an empty map the position variance must shrink in the correction: predicted "
@@ -774,6 +791,13 @@ def test_ekf_step_no_return_reads_as_max_range(lab):
         )
         for z in (capped, endless)
     ]
+    x, p, _, _ = _ekf_by_hand(box, _X0, _P0, _Q, np.eye(36), capped)
+    np.testing.assert_allclose(
+        _f(results[0][0]),
+        x,
+        atol=2e-4,
+        err_msg="readings of exactly max_range: expected the state of Table 3.3 by hand",
+    )
     for name, a, b in zip(("state", "covariance", "map"), *results, strict=True):
         np.testing.assert_allclose(
             _f(b),

@@ -172,6 +172,7 @@ FREE_POINTS = {
 #: is the reference module's source: the zeros stub needs the shape of the right answer.
 _HELPERS = """\
 import dataclasses as _dataclasses
+import numbers as _numbers
 
 import numpy as _np
 
@@ -184,7 +185,7 @@ def _zeros_like(x):
         return _np.zeros_like(x)
     if isinstance(x, (bool, _np.bool_)):
         return False
-    if isinstance(x, (int, float, complex, _np.number)):
+    if isinstance(x, _numbers.Number):  # int, float, Fraction, numpy scalars
         return type(x)(0)
     if isinstance(x, (tuple, list)):
         return type(x)(_zeros_like(v) for v in x)
