@@ -559,7 +559,14 @@ def test_model_invariant_to_particle_order(lab):
     )
     scan = _scan_from(grid, [2.0, 2.5, 0.4], LASER)
     params = {**MODEL, "laser_pose": LASER}
-    logw = _f(lab.likelihood_field_model(scan, particles, field, params))
+    logw = _f(lab.likelihood_field_model(scan, particles.copy(), field, params))
+    np.testing.assert_allclose(
+        logw,
+        _model_oracle(scan, particles, field, 0.9, 0.1, LASER),
+        rtol=1e-6,
+        atol=1e-9,
+        err_msg="300 random particles: expected the Table 6.3 log-likelihoods",
+    )
     perm = rng.permutation(300)
     np.testing.assert_allclose(
         _f(lab.likelihood_field_model(scan, particles[perm], field, params)),
@@ -1080,7 +1087,7 @@ def test_augmented_mcl_running_averages_equal_the_formula(lab):
     w_avg = float(np.mean(np.exp(_model_oracle(scan, p, field, 0.9, 0.1, LASER) / k)))
     for slow, fast in ((0.2, 0.3), (1.5, 0.4)):
         out = lab.augmented_mcl_step(
-            p,
+            p.copy(),
             np.full(300, 1 / 300),
             np.zeros(3),
             np.zeros(3),
@@ -1114,8 +1121,8 @@ def test_augmented_mcl_resamples_with_the_incoming_weights(lab):
     w[7] = 1.0
     scan = _scan_from(grid, [1.0, 2.0, 0.2], LASER)
     out = lab.augmented_mcl_step(
-        p,
-        w,
+        p.copy(),  # compared with p[7] below: the function gets a copy it may change
+        w.copy(),
         np.zeros(3),
         np.zeros(3),
         scan,

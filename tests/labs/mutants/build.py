@@ -213,6 +213,23 @@ def _clobber(x):
 """
 
 
+def _standalone_source(path: Path) -> str:
+    """A solution module's source that runs without ``solutions`` (submissions cannot import
+    it): each ``from solutions.<m> import ...`` is replaced by module ``m``'s own source."""
+    text = path.read_text()
+    lines = text.splitlines()
+    before: list[str] = []
+    for node in reversed(ast.parse(text).body):
+        if isinstance(node, ast.ImportFrom) and (
+            node.module == "__future__" or (node.module or "").startswith("solutions.")
+        ):
+            if node.module != "__future__":
+                module = path.parent / f"{node.module.split('.')[1]}.py"
+                before.insert(0, _standalone_source(module))
+            del lines[node.lineno - 1 : node.end_lineno]
+    return "\n".join(before + lines) + "\n"
+
+
 def _call_arguments(node: ast.FunctionDef) -> str:
     """The arguments that pass each parameter of ``node`` on, as in its own signature."""
     a = node.args
@@ -255,7 +272,7 @@ def free_points_variant(lab: Lab, kind: str) -> nbformat.NotebookNode:
             nb = replace_function(nb, node.name, src)
     if kind in ("zeros", "clobber"):
         first_exercise = min(index for index, _ in exercise_cells(nb))
-        helpers = _HELPERS.format(solution=lab.solution.read_text())
+        helpers = _HELPERS.format(solution=_standalone_source(lab.solution))
         nb.cells.insert(first_exercise, nbformat.v4.new_code_cell(helpers))
     return nb
 
