@@ -359,7 +359,15 @@ def test_filter_uses_next_previous_index_convention(lab):
 @grades("bayes_filter_step", points=5)
 @requires("test_filter_book_step_2")
 def test_filter_invariants(lab):
-    """bayes_filter_step: nothing done and learnt changes nothing; unreachable states stay 0."""
+    """bayes_filter_step: nothing done and learnt changes nothing; unreachable states stay 0.
+
+    The smallest world, one state, is certain: its belief stays (1,), an array of one.
+    """
+    one = _f(lab.bayes_filter_step([1.0], [[1.0]], [0.3]))
+    assert one.shape == (1,) and one[0] == pytest.approx(1.0, abs=1e-12), (
+        f"one state: belief (1,), action [[1]], likelihood (0.3,): expected the belief [1.0] "
+        f"of shape (1,), got {one!r}"
+    )
     rng = np.random.default_rng(105)
     n = 5
     bel = _random_simplex(rng, n)

@@ -469,7 +469,7 @@ POSES = np.array([[0.0, 0.0, 0.0], [2.0, 1.0, 1.0], [2.0, 5.0, -1.0]])
 
 @grades("pose_at", points=6)
 def test_pose_at_hand_computed(lab):
-    """pose_at: halfway through [0, 1] and 3/4 through [1, 3], scalar and vector t."""
+    """pose_at: halfway through [0, 1] and 3/4 through [1, 3], scalar and vector t (even of one)."""
     out = _f(lab.pose_at(STAMPS, POSES, 0.5))
     assert out.shape == (3,), f"a scalar t gives one pose (3,), got {out.shape}"
     np.testing.assert_allclose(
@@ -484,6 +484,8 @@ def test_pose_at_hand_computed(lab):
         atol=1e-12,
         err_msg="t = 2.5 between (2, 1, 1) at 1 s and (2, 5, -1) at 3 s: expected (2, 4, -0.5)",
     )
+    out = _f(lab.pose_at(STAMPS, POSES, np.array([0.5])))
+    assert out.shape == (1, 3), f"t = [0.5], an array of one time: expected (1, 3), got {out.shape}"
     out = _f(lab.pose_at(STAMPS, POSES, np.array([0.25, 2.0])))
     assert out.shape == (2, 3), f"t = [0.25, 2.0]: expected shape (2, 3), got {out.shape}"
     np.testing.assert_allclose(

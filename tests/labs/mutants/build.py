@@ -47,6 +47,7 @@ CLASSES = {
     "formula": "a wrong core formula (a sign, a transpose, a missing factor)",
     "result-type": "the wrong type, shape or exactness of the result",
     "delegation": "calling the library's own version of the exercise",
+    "minimum-size": "the smallest valid input: one pose, particle, beam, landmark or state",
 }
 
 
