@@ -164,7 +164,12 @@ def test_p_hit_integrates_to_one(lab, z_star, z_max, sigma):
 
 @grades("p_hit", points=4)
 def test_p_hit_reference_values_and_broadcasting(lab):
-    """p_hit matches eta N(z; z*, sigma^2) with eta from the normal CDF, and broadcasts."""
+    """p_hit matches eta N(z; z*, sigma^2) with eta from the normal CDF, and broadcasts.
+
+    One reading in an array, the smallest input, gives an array of one density.
+    """
+    one = _f(lab.p_hit(np.array([1.0]), 1.0, 5.0, 0.4))
+    assert one.shape == (1,), f"p_hit(z = [1.0], 1, 5, 0.4): expected shape (1,), got {one.shape}"
     z = np.array([[0.0], [1.0], [2.5], [4.99], [5.0]])  # (5, 1)
     z_star = np.array([0.5, 2.5, 4.8])  # (3,)
     got = _f(lab.p_hit(z, z_star, 5.0, 0.4))

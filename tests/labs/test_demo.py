@@ -44,7 +44,12 @@ def test_normalize_sums_to_one(lab):
 
 @pytest.mark.grades("normalize", points=15)
 def test_normalize_known_values(lab):
-    """normalize: [1, 1, 2] becomes [0.25, 0.25, 0.5]; a zero weight is valid: [0, 1, 3]."""
+    """normalize: [1, 1, 2] becomes [0.25, 0.25, 0.5]; a zero weight is valid: [0, 1, 3].
+
+    A single weight is the smallest valid input: [3] becomes [1], still an array (1,).
+    """
+    one = _floats(lab.normalize(np.array([3.0])))
+    assert one.shape == (1,) and one[0] == 1.0, f"normalize([3]): expected [1.0], got {one!r}"
     got = _floats(lab.normalize(np.array([1.0, 1.0, 2.0])))
     np.testing.assert_allclose(
         got,

@@ -258,7 +258,7 @@ def test_measurement_function_evidence_map_threshold(lab):
 
 @pytest.mark.grades("measurement_function", points=4)
 def test_measurement_function_worked_examples(lab):
-    """Facing a wall: beam 0 = distance to its face; empty map: max range; n_beams, max_range."""
+    """Facing a wall: beam 0 = distance to its face; empty map: max range; n_beams (even 1)."""
     d = np.zeros((10, 30))
     d[:, 20] = 1.0  # a wall whose face is at x = 20
     grid = OccupancyGrid(d, 1.0)
@@ -283,6 +283,14 @@ def test_measurement_function_worked_examples(lab):
         atol=1e-9,
         err_msg="heading +y, 4 beams, max_range 10: beam 3 (+x) ends on the wall at 7.5",
     )  # beam 3 points along +x again
+    one = _f(lab.measurement_function([12.5, 5.0, 0.0], grid, n_beams=1, max_range=10.0))
+    assert one.shape == (1,), f"n_beams = 1: expected one range of shape (1,), got {one.shape}"
+    np.testing.assert_allclose(
+        one,
+        [7.5],
+        atol=1e-9,
+        err_msg="one beam (n_beams = 1) facing the wall at 7.5: expected [7.5], shape (1,)",
+    )
     empty = _f(lab.measurement_function([5.0, 5.0, 0.3], OccupancyGrid(np.zeros((10, 10)), 1.0)))
     np.testing.assert_allclose(
         empty, np.full(36, ZMAX), err_msg="a map without obstacles: every beam at max range"

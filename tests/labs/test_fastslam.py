@@ -161,11 +161,19 @@ def test_init_particles_particles_own_their_arrays(lab):
 
 @pytest.mark.grades("predict_poses", points=4)
 def test_predict_poses_without_noise_is_the_unicycle(lab):
-    """Q = 0: every particle moves by the unicycle step, heading wrapped."""
+    """Q = 0: every particle moves by the unicycle step, heading wrapped; also one particle."""
     rng = np.random.default_rng(0)
     poses = np.column_stack([rng.uniform(-5, 5, (20, 2)), rng.uniform(-np.pi, np.pi, 20)])
     v, w, dt = 0.8, -0.6, 0.25
-    got = _f(lab.predict_poses(poses, [v, w], np.zeros((3, 3)), np.random.default_rng(1), dt=dt))
+    one = _f(
+        lab.predict_poses(
+            poses[:1].copy(), [v, w], np.zeros((3, 3)), np.random.default_rng(1), dt=dt
+        )
+    )
+    assert one.shape == (1, 3), f"one particle (1, 3) in: expected (1, 3) out, got {one.shape}"
+    got = _f(
+        lab.predict_poses(poses.copy(), [v, w], np.zeros((3, 3)), np.random.default_rng(1), dt=dt)
+    )
     expected = np.column_stack(
         [
             poses[:, 0] + v * dt * np.cos(poses[:, 2]),

@@ -520,9 +520,10 @@ LASER = np.array([0.1, 0.05, 0.3])
 
 @grades("likelihood_field_model", points=5)
 def test_model_matches_table_6_3_oracle(lab):
-    """Log-likelihoods of 40 particles equal Table 6.3 beam by beam.
+    """Log-likelihoods of 40 particles equal Table 6.3 beam by beam; also of one particle.
 
     Max-range and invalid beams are skipped; endpoints off the map count as d = max_dist.
+    One particle and a scan of one beam, the smallest input, keep their shape (1,).
     """
     grid = _room()
     field = _field(grid, 0.1, 1.0)
@@ -545,6 +546,17 @@ def test_model_matches_table_6_3_oracle(lab):
         atol=1e-6,
         err_msg="Table 6.3 beam by beam: sum of log(z_hit N(d) + z_rand / z_max) over the valid "
         "beams",
+    )
+    # the smallest valid input: one particle, a scan of one beam
+    one_scan = {"ranges": ranges[:1], "angles": angles[:1], "range_min": 0.05, "range_max": 6.0}
+    one = _f(lab.likelihood_field_model(one_scan, particles[:1].copy(), field, params))
+    assert one.shape == (1,), f"one particle (1, 3): expected shape (1,), got {one.shape}"
+    np.testing.assert_allclose(
+        one,
+        _model_oracle(one_scan, particles[:1], field, 0.9, 0.1, LASER),
+        rtol=1e-6,
+        atol=1e-6,
+        err_msg="one particle and a scan of one beam: expected Table 6.3's log-likelihood",
     )
 
 
