@@ -177,6 +177,17 @@ def test_p_hit_reference_values_and_broadcasting(lab):
         f"z (5, 1) and z_star (3,) should broadcast to (5, 3), got {got.shape}"
     )
     expected = np.array([[_ref_p_hit(a, b, 5.0, 0.4) for b in z_star] for a in z[:, 0]])
+    wrong = where_wrong(
+        np.repeat(z[:, 0], 3),
+        got.ravel(),
+        expected.ravel(),
+        {"0": 0.0, "z_max": 5.0},
+        "eta must be 1 / (Phi((z_max - z*) / sigma) - Phi(-z* / sigma))",
+    )
+    assert wrong is None, (
+        f"p_hit for z in (0, 1, 2.5, 4.99, 5) and z* in (0.5, 2.5, 4.8), z_max 5, sigma 0.4: "
+        f"{wrong}"
+    )
     np.testing.assert_allclose(
         got,
         expected,
@@ -279,6 +290,14 @@ def test_p_short_reference_values(lab):
     got = _f(lab.p_short(z, z_star, 1.5))
     assert got.shape == (4, 2), f"z (4, 1) and z_star (2,): expected shape (4, 2), got {got.shape}"
     expected = np.array([[_ref_p_short(a, b, 1.5) for b in z_star] for a in z[:, 0]])
+    wrong = where_wrong(
+        np.repeat(z[:, 0], 2),
+        got.ravel(),
+        expected.ravel(),
+        {"0": 0.0, "z* = 1": 1.0},
+        "eta must be 1 / (1 - exp(-lambda z*))",
+    )
+    assert wrong is None, f"p_short for z in (0, 0.5, 1, 2.9) and z* in (1, 3), lambda 1.5: {wrong}"
     np.testing.assert_allclose(
         got,
         expected,
