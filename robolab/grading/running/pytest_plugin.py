@@ -356,7 +356,8 @@ def failure_message(exc: BaseException | None, crash_message: str | None) -> str
         head = _REWRITE_TAIL.sub("", text)
         if head.strip() and head.strip() not in ("AssertionError", "AssertionError:"):
             text = head
-    text = text.strip()
+    # pytest.fail's own words (a refusal naming its input, "Not run: ...") without pytest's label
+    text = text.strip().removeprefix("Failed: ")
     if (missed := _DID_NOT_RAISE.search(text)) is not None:
         kind = missed.group(1) or missed.group(2) or "an error"
         text = (
