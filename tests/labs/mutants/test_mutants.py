@@ -244,3 +244,43 @@ def test_failures_caused_by_another_exercise_point_to_it(lab):
             )
     if lab in ("beam_model", "landmark_pf"):
         assert checked, f"lab {lab}: expected some exercise to fail through a function it uses"
+
+
+@pytest.mark.parametrize("lab", MUTANT_LABS)
+def test_mutants_call_the_solutions_helpers_as_they_are_defined(lab):
+    """A mutant's calls of the solution's private helpers bind to their current signatures.
+
+    A mutant written against an older helper fails with a TypeError in the helper call:
+    it loses its points for that, not for its mistake, and its feedback blames nothing
+    a student would write.
+    """
+    import ast
+    import importlib
+    import inspect
+
+    module = importlib.import_module(f"solutions.{lab}")
+    stale = []
+    for path in sorted((build.HERE / lab).glob("*.py")):
+        tree = ast.parse(path.read_text())
+        helpers = {
+            alias.asname or alias.name
+            for node in tree.body
+            if isinstance(node, ast.ImportFrom) and node.module == f"solutions.{lab}"
+            for alias in node.names
+        }
+        for call in ast.walk(tree):
+            if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name)):
+                continue
+            if call.func.id not in helpers or not callable(getattr(module, call.func.id, None)):
+                continue
+            if any(isinstance(a, ast.Starred) for a in call.args) or any(
+                k.arg is None for k in call.keywords
+            ):
+                continue
+            try:
+                inspect.signature(getattr(module, call.func.id)).bind(
+                    *call.args, **{k.arg: k.value for k in call.keywords}
+                )
+            except TypeError as exc:
+                stale.append(f"{path.name}:{call.lineno}: {ast.unparse(call)[:80]}: {exc}")
+    assert not stale, f"lab {lab}: mutants call helpers that changed:\n  " + "\n  ".join(stale)
