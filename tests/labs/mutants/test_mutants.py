@@ -262,12 +262,18 @@ def test_mutants_call_the_solutions_helpers_as_they_are_defined(lab):
     stale = []
     for path in sorted((build.HERE / lab).glob("*.py")):
         tree = ast.parse(path.read_text())
-        helpers = {
-            alias.asname or alias.name
+        imported = [
+            alias
             for node in tree.body
             if isinstance(node, ast.ImportFrom) and node.module == f"solutions.{lab}"
             for alias in node.names
-        }
+        ]
+        stale += [
+            f"{path.name}: imports {a.name}, which solutions/{lab}.py no longer defines"
+            for a in imported
+            if not hasattr(module, a.name)
+        ]
+        helpers = {alias.asname or alias.name for alias in imported}
         for call in ast.walk(tree):
             if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name)):
                 continue
