@@ -943,12 +943,10 @@ def test_fastslam_reports_the_particle_means(lab, fiducial_run):
         "resampling)",
     )
     heading = np.arctan2(np.sin(particles[:, :, 2]).mean(1), np.cos(particles[:, :, 2]).mean(1))
-    bad = np.abs(_wrap(path[:, 2] - heading)) > 1e-9
-    assert not bad.any(), (
-        f"path heading must be the circular mean of the particles' headings: {bad.sum()} steps "
-        f"differ, "
-        f"e.g. step {np.argmax(bad)}: expected {heading[np.argmax(bad)]:.4f}, got "
-        f"{path[np.argmax(bad), 2]:.4f}"
+    wrong = angle_error(path[:, 2], heading, atol=1e-9)
+    assert wrong is None, (
+        "path heading at each step (index = step) must be the circular mean of the particles' "
+        "headings: " + wrong
     )
     state = out["state"]
     w, mu, sig = _f(state["weights"]), _f(state["means"]), _f(state["covs"])
