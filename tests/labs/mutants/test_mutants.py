@@ -290,3 +290,24 @@ def test_mutants_call_the_solutions_helpers_as_they_are_defined(lab):
             except TypeError as exc:
                 stale.append(f"{path.name}:{call.lineno}: {ast.unparse(call)[:80]}: {exc}")
     assert not stale, f"lab {lab}: mutants call helpers that changed:\n  " + "\n  ".join(stale)
+
+
+#: Failures that say the mutant's code is out of date with the solution, not its mistake.
+STALE_SIGNS = ("NameError", "ImportError", "required positional argument", "unexpected keyword")
+
+
+@pytest.mark.parametrize("mutant", MUTANTS, ids=[m.id for m in MUTANTS])
+def test_each_mutant_fails_for_its_own_mistake(mutant):
+    """No failure of the mutated exercise comes from a helper that no longer exists or fits.
+
+    A mutant that dies on a renamed helper loses its points whatever its mistake, and the
+    feedback a student would read for that mistake is never seen.
+    """
+    result = next(r for group, r in graded(mutant.lab)["packs"] if mutant in group)
+    stale = [
+        f"{t.description}: {t.message[:200]!r}"
+        for t in result.tests
+        if t.exercise == mutant.exercise and not t.passed
+        if any(sign in t.message for sign in STALE_SIGNS)
+    ]
+    assert not stale, f"mutant {mutant.id} fails for another reason than its mistake: {stale}"
