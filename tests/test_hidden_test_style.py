@@ -116,7 +116,7 @@ def style_problems(path: Path) -> list[str]:
                 )
             if leaf == "refuses" and not (
                 len(node.args) == 2
-                and isinstance(node.args[1], (ast.Constant, ast.JoinedStr))
+                and isinstance(node.args[1], (ast.Constant, ast.JoinedStr, ast.Name))
                 and (not isinstance(node.args[1], ast.Constant) or str(node.args[1].value).strip())
             ):
                 problems.append(
@@ -206,9 +206,40 @@ def raises_section(doc: str) -> str:
     return ""
 
 
-def refusals(path: Path) -> list[tuple[int, str, str, str]]:
-    """Every ``with refuses(Error, "input"):`` block: (line, error, input text, exercise called)."""
+def _loop_values(node: ast.AST, name: str, parents: dict) -> list[str]:
+    """The string literals a ``for`` loop around ``node`` binds to ``name`` ([] if none)."""
+    while node in parents:
+        node = parents[node]
+        if not isinstance(node, ast.For) or not isinstance(node.iter, (ast.Tuple, ast.List)):
+            continue
+        targets = node.target.elts if isinstance(node.target, ast.Tuple) else [node.target]
+        where = [i for i, t in enumerate(targets) if isinstance(t, ast.Name) and t.id == name]
+        if not where:
+            continue
+        items = [
+            e.elts[where[0]]
+            if isinstance(node.target, ast.Tuple) and isinstance(e, ast.Tuple)
+            else e
+            for e in node.iter.elts
+        ]
+        return [i.value for i in items if isinstance(i, ast.Constant) and isinstance(i.value, str)]
+    return []
+
+
+def _texts(desc: ast.AST, parents: dict) -> list[str]:
+    """What a refusal's description can read: loop variables replaced by their literals."""
+    names = [n.id for n in ast.walk(desc) if isinstance(n, ast.Name)]
+    fixed = ast.unparse(desc)
+    for name in names:
+        fixed = fixed.replace("{" + name + "}", "").replace(name, "")
+    values = [v for name in names for v in _loop_values(desc, name, parents)]
+    return [fixed + " " + v for v in values] if values else [ast.unparse(desc)]
+
+
+def refusals(path: Path) -> list[tuple[int, str, list[str], str]]:
+    """Every ``with refuses(Error, "input"):`` block: (line, error, input texts, exercise)."""
     tree = ast.parse(path.read_text(), filename=str(path))
+    parents = {child: node for node in ast.walk(tree) for child in ast.iter_child_nodes(node)}
     found = []
     for node in ast.walk(tree):
         if not isinstance(node, ast.With):
@@ -218,7 +249,7 @@ def refusals(path: Path) -> list[tuple[int, str, str, str]]:
             if not (isinstance(call, ast.Call) and _dotted(call.func) == "refuses"):
                 continue
             error = _dotted(call.args[0]) if call.args else ""
-            text = ast.unparse(call.args[1]) if len(call.args) > 1 else ""
+            texts = _texts(call.args[1], parents) if len(call.args) > 1 else [""]
             called = [
                 sub.func.attr
                 for stmt in node.body
@@ -227,7 +258,7 @@ def refusals(path: Path) -> list[tuple[int, str, str, str]]:
                 and isinstance(sub.func, ast.Attribute)
                 and _dotted(sub.func.value) == "lab"
             ]
-            found.append((node.lineno, error, text, called[0] if called else ""))
+            found.append((node.lineno, error, texts, called[0] if called else ""))
     return found
 
 
@@ -241,7 +272,7 @@ def test_every_refusal_is_documented_and_named(lab):
     """
     stubs = _stub_docstrings(lab)
     problems = []
-    for line, error, text, called in refusals(lab.hidden_tests):
+    for line, error, texts, called in refusals(lab.hidden_tests):
         stub = stubs.get(called)
         if stub is None:
             problems.append(f"{line}: refuses(...) calls no exercise of the lab ({called!r})")
@@ -253,10 +284,11 @@ def test_every_refusal_is_documented_and_named(lab):
                 f"Raises entry for it"
             )
         params = [a.arg for a in stub.args.posonlyargs + stub.args.args + stub.args.kwonlyargs]
-        if not any(re.search(rf"(?<![\w.]){re.escape(p)}\b", text) for p in params):
-            problems.append(
-                f"{line}: refuses({error}, {text}) names none of {called}'s parameters {params}"
-            )
+        for text in texts:
+            if not any(re.search(rf"(?<![\w.]){re.escape(p)}\b", text) for p in params):
+                problems.append(
+                    f"{line}: refuses({error}, {text}) names none of {called}'s parameters {params}"
+                )
     assert not problems, f"{lab.hidden_tests.name}:\n  " + "\n  ".join(problems)
 
 
