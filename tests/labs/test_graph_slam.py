@@ -203,10 +203,12 @@ def test_pose_pose_error_worked_examples(lab):
 
 @pytest.mark.grades("pose_pose_error", points=4)
 def test_pose_pose_error_vectorised_over_many_edges(lab):
-    """100 random edges at once match the oracle edge by edge."""
+    """100 random edges at once match the oracle edge by edge; so does a stack of one edge."""
     rng = np.random.default_rng(1)
     xi, xj, z = _random_poses(rng, 100), _random_poses(rng, 100), _random_poses(rng, 100)
-    got = _f(lab.pose_pose_error(xi, xj, z))
+    one = _f(lab.pose_pose_error(xi[:1].copy(), xj[:1].copy(), z[:1].copy()))
+    assert one.shape == (1, 3), f"one edge as (1, 3) arrays: expected shape (1, 3), got {one.shape}"
+    got = _f(lab.pose_pose_error(xi.copy(), xj.copy(), z.copy()))
     assert got.shape == (100, 3), f"100 edges: expected shape (100, 3), got {got.shape}"
     np.testing.assert_allclose(
         got, _pp_error(xi, xj, z), atol=1e-10, err_msg="pose-pose errors of 100 random edges"
