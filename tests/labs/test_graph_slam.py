@@ -500,9 +500,16 @@ def test_build_linear_system_returns_a_scipy_sparse_h(lab):
     assert scipy.sparse.issparse(H) or isinstance(H, SparseMatrix), (
         f"H must be a scipy.sparse matrix, got {type(H).__name__}"
     )
-    stored = int(np.count_nonzero(_dense(H)))
+    dense = _dense(H)
+    stored = int(np.count_nonzero(dense))
     bound = 36 * len(g.edges) + 9 * g.n_poses
     assert stored <= bound, f"H has {stored} non-zero entries, expected at most {bound}"
+    # a value too, so that an empty H of the right shape earns nothing: every pose is in an
+    # edge with a positive definite information matrix, so H's diagonal is positive
+    assert np.all(np.diag(dense) > 0), (
+        f"every pose of the 40-pose graph is in an edge: expected H's diagonal positive, got "
+        f"{int(np.sum(np.diag(dense) <= 0))} entries <= 0"
+    )
 
 
 @pytest.mark.grades("build_linear_system", points=2)

@@ -184,6 +184,8 @@ exec(compile({solution!r}, "reference", "exec"), _REFERENCE)
 def _zeros_like(x):
     if isinstance(x, _np.ndarray):
         return _np.zeros_like(x)
+    if hasattr(x, "tocsr") and hasattr(x, "shape"):  # a scipy.sparse matrix: no entries
+        return type(x)(x.shape, dtype=x.dtype)
     if isinstance(x, (bool, _np.bool_)):
         return False
     if isinstance(x, _numbers.Number):  # int, float, Fraction, numpy scalars
