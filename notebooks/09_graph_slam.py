@@ -122,6 +122,11 @@ def pose_pose_error(xi, xj, z):
     -------
     numpy.ndarray, shape (..., 3)
         The error; its angle wrapped to ``[-pi, pi)``.
+
+    Raises
+    ------
+    ValueError
+        ``xi``, ``xj`` or ``z`` not of shape (..., 3), or shapes that do not broadcast.
     """
     # YOUR CODE HERE
     raise NotImplementedError

@@ -58,6 +58,7 @@ source lines.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib
 import json
@@ -201,6 +202,35 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
         )
 
 
+@contextlib.contextmanager
+def _refusing(error: type[BaseException], bad_input: str) -> Iterator[None]:
+    if not isinstance(bad_input, str) or not bad_input.strip():
+        raise TypeError("refuses(error, bad_input): bad_input names the input, e.g. 'sigma = -1'")
+    try:
+        yield
+    except error:
+        return
+    pytest.fail(
+        f"expected {error.__name__} for {bad_input}, but the function returned normally: the "
+        "docstring asks to refuse such input with a clear error, not to compute on it",
+        pytrace=False,
+    )
+
+
+@pytest.fixture
+def refuses():
+    """A refusal check that names its bad input in the feedback::
+
+        with refuses(ValueError, "sigma_hit = -0.1 (a standard deviation must be > 0)"):
+            lab.p_hit(1.0, 1.0, 5.0, -0.1)
+
+    Passes when the block raises ``error`` (a subclass included); fails, naming
+    ``bad_input``, when it returns normally. Any other exception propagates, as
+    with ``pytest.raises`` (a stub's NotImplementedError stays "not implemented").
+    """
+    return _refusing
+
+
 # --- the grades marker ------------------------------------------------------------------------
 
 
@@ -321,7 +351,8 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     waiting = [n for n in required_of(pyfuncitem) if (module, n) in failed]
     if waiting:
         titles = {
-            _base_name(it): describe(it).split(" [")[0]
+            _base_name(it): title_of(getattr(getattr(it, "obj", None), "__doc__", None))
+            or _base_name(it)
             for it in pyfuncitem.session.items
             if it.nodeid.split("::")[0] == module and _base_name(it) in waiting
         }
@@ -377,14 +408,16 @@ def pytest_collection_modifyitems(
 # --- the results collector --------------------------------------------------------------------
 
 
+def title_of(doc: str | None) -> str:
+    """A docstring's first paragraph on one line: the check's title (a whole sentence)."""
+    paragraph = (doc or "").strip().split("\n\n")[0]
+    return " ".join(paragraph.split())
+
+
 def describe(item: pytest.Item) -> str:
-    """A test's name in words: its docstring's first line, else its name without ``test_``."""
-    doc = (getattr(getattr(item, "obj", None), "__doc__", None) or "").strip()
-    base = (
-        doc.splitlines()[0].strip()
-        if doc
-        else item.name.split("[")[0].removeprefix("test_").replace("_", " ")
-    )
+    """A test's name in words: its docstring's title, else its name without ``test_``."""
+    doc = getattr(getattr(item, "obj", None), "__doc__", None)
+    base = title_of(doc) or item.name.split("[")[0].removeprefix("test_").replace("_", " ")
     param = item.name[len(item.name.split("[")[0]) :]
     return base + (f" {param}" if param else "")
 
@@ -413,7 +446,8 @@ def failure_message(exc: BaseException | None, crash_message: str | None) -> str
         head = _REWRITE_TAIL.sub("", text)
         if head.strip() and head.strip() not in ("AssertionError", "AssertionError:"):
             text = head
-    text = text.strip()
+    # pytest.fail's own words (a refusal naming its input, "Not run: ...") without pytest's label
+    text = text.strip().removeprefix("Failed: ")
     if (missed := _DID_NOT_RAISE.search(text)) is not None:
         kind = missed.group(1) or missed.group(2) or "an error"
         text = (

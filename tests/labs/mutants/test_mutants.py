@@ -2,9 +2,10 @@
 
 Per lab, one batch is graded through the real grader (``robolab.grading.running.runner``,
 two at a time): the solved notebook (must earn 100), the mutants packed into
-notebooks (see ``build.py``: each must lose points on its own exercise), and two
-"free points" notebooks, every exercise raising ValueError and every exercise
-returning its first argument (both must earn 0, in every lab with a notebook).
+notebooks (see ``build.py``: each must lose points on its own exercise), and the
+"free points" notebooks (``build.FREE_POINTS``: every exercise raising ValueError,
+returning its first argument, returning zeros of the right shape, or zeroing its
+inputs in place and returning the first; each must earn 0, in every lab).
 """
 
 from __future__ import annotations
@@ -27,6 +28,9 @@ MUTANT_LABS = build.labs_with_mutants()
 MUTANTS = [m for name in MUTANT_LABS for m in build.mutants_of(name)]
 #: Every lab's mutation suite holds at least this many mistakes.
 MIN_MUTANTS = 12
+#: Classes every lab's suite covers, whatever its topic: each lab's hidden tests give its
+#: exercises the smallest valid input (one pose, particle, beam, landmark, state).
+EVERY_LAB = {"minimum-size"}
 #: The classes of issue 15 each lab's suite must cover (those that apply to it).
 APPLICABLE = {
     "frames": {"boundary", "refusal", "angle-wrap", "formula", "delegation"},
@@ -121,7 +125,7 @@ FREE_POINTS_PENDING: set[str] = set()
 
 @functools.lru_cache(maxsize=None)
 def graded(lab_name: str) -> dict:
-    """Grade the lab's batch once: ``{"correct", "raises", "echo", "packs": [(group, result)]}``."""
+    """Grade the lab's batch once: ``{"correct", <each free-points kind>, "packs": [...]}``."""
     from robolab.grading.running.runner import grade_all
 
     lab = find_lab(lab_name)
@@ -131,9 +135,7 @@ def graded(lab_name: str) -> dict:
         folder = Path(tmp)
         notebooks = {
             "correct": base,
-            "raises": build.free_points_variant(lab, "raises"),
-            "echo": build.free_points_variant(lab, "echo"),
-        }
+        } | {kind: build.free_points_variant(lab, kind) for kind in build.FREE_POINTS}
         notebooks |= {
             f"pack{i:02d}": build.pack_notebook(lab, g, base) for i, g in enumerate(groups)
         }
@@ -146,8 +148,7 @@ def graded(lab_name: str) -> dict:
     by_key = dict(zip(notebooks, results, strict=True))
     return {
         "correct": by_key["correct"],
-        "raises": by_key["raises"],
-        "echo": by_key["echo"],
+        **{kind: by_key[kind] for kind in build.FREE_POINTS},
         "packs": [(g, by_key[f"pack{i:02d}"]) for i, g in enumerate(groups)],
     }
 
@@ -170,7 +171,7 @@ def test_the_catalogue_is_complete(lab):
     assert not strangers, f"lab {lab}: mutants of functions that are not exercises: {strangers}"
     untouched = exercises - {m.exercise for m in mutants}
     assert not untouched, f"lab {lab}: exercises without any mutant: {sorted(untouched)}"
-    missing = APPLICABLE.get(lab, set()) - {m.kind for m in mutants}
+    missing = (APPLICABLE.get(lab, set()) | EVERY_LAB) - {m.kind for m in mutants}
     assert not missing, f"lab {lab}: mistake classes with no mutant: {sorted(missing)}"
     delegated = {m.exercise for m in mutants if m.kind == "delegation"}
     undelegated = sorted(e for e, names in FORBIDDEN.get(lab, {}).items() if names)
@@ -229,17 +230,18 @@ def test_each_mutant_loses_points_on_its_own_exercise(mutant):
 FREE_LABS = [lab.name for lab in LABS]
 
 
-@pytest.mark.parametrize("kind", ["raises", "echo"])
+@pytest.mark.parametrize("kind", sorted(build.FREE_POINTS))
 @pytest.mark.parametrize("lab", FREE_LABS)
 def test_free_points_notebooks_earn_nothing(lab, kind):
-    """Exercises that only raise ValueError, or only return their first argument, earn 0."""
+    """Exercises that only raise, echo their input, return zeros or zero their inputs earn 0."""
     if lab in FREE_POINTS_PENDING:
         pytest.xfail(f"lab {lab}: its hidden tests are not gated yet")
     result = graded(lab)[kind]
     assert not result.errors, f"lab {lab}, {kind}: grading failed: {result.errors}"
     kept = [f"{t.exercise}: {t.description} ({t.points:g})" for t in result.tests if t.passed]
     assert result.total == 0, (
-        f"lab {lab}: a notebook whose every exercise {kind} earned {result.total:g} points, "
+        f"lab {lab}: a notebook whose every exercise {build.FREE_POINTS[kind]} earned "
+        f"{result.total:g} points, "
         f"expected 0; passing: {kept}"
     )
 
@@ -287,6 +289,73 @@ def test_a_mistake_costs_once(lab):
         f"(at most {COLLATERAL_SHARE * len(rows):.2f} allowed), {mean:.2f} points on average "
         f"(at most {COLLATERAL_MEAN}); every mutant:\n{table}"
     )
+
+
+@pytest.mark.parametrize("lab", MUTANT_LABS)
+def test_mutants_call_the_solutions_helpers_as_they_are_defined(lab):
+    """A mutant's calls of the solution's private helpers bind to their current signatures.
+
+    A mutant written against an older helper fails with a TypeError in the helper call:
+    it loses its points for that, not for its mistake, and its feedback blames nothing
+    a student would write.
+    """
+    import ast
+    import importlib
+    import inspect
+
+    module = importlib.import_module(f"solutions.{lab}")
+    stale = []
+    for path in sorted((build.HERE / lab).glob("*.py")):
+        tree = ast.parse(path.read_text())
+        imported = [
+            alias
+            for node in tree.body
+            if isinstance(node, ast.ImportFrom) and node.module == f"solutions.{lab}"
+            for alias in node.names
+        ]
+        stale += [
+            f"{path.name}: imports {a.name}, which solutions/{lab}.py no longer defines"
+            for a in imported
+            if not hasattr(module, a.name)
+        ]
+        helpers = {alias.asname or alias.name for alias in imported}
+        for call in ast.walk(tree):
+            if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name)):
+                continue
+            if call.func.id not in helpers or not callable(getattr(module, call.func.id, None)):
+                continue
+            if any(isinstance(a, ast.Starred) for a in call.args) or any(
+                k.arg is None for k in call.keywords
+            ):
+                continue
+            try:
+                inspect.signature(getattr(module, call.func.id)).bind(
+                    *call.args, **{k.arg: k.value for k in call.keywords}
+                )
+            except TypeError as exc:
+                stale.append(f"{path.name}:{call.lineno}: {ast.unparse(call)[:80]}: {exc}")
+    assert not stale, f"lab {lab}: mutants call helpers that changed:\n  " + "\n  ".join(stale)
+
+
+#: Failures that say the mutant's code is out of date with the solution, not its mistake.
+STALE_SIGNS = ("NameError", "ImportError", "required positional argument", "unexpected keyword")
+
+
+@pytest.mark.parametrize("mutant", MUTANTS, ids=[m.id for m in MUTANTS])
+def test_each_mutant_fails_for_its_own_mistake(mutant):
+    """No failure of the mutated exercise comes from a helper that no longer exists or fits.
+
+    A mutant that dies on a renamed helper loses its points whatever its mistake, and the
+    feedback a student would read for that mistake is never seen.
+    """
+    result = next(r for group, r in graded(mutant.lab)["packs"] if mutant in group)
+    stale = [
+        f"{t.description}: {t.message[:200]!r}"
+        for t in result.tests
+        if t.exercise == mutant.exercise and not t.passed
+        if any(sign in t.message for sign in STALE_SIGNS)
+    ]
+    assert not stale, f"mutant {mutant.id} fails for another reason than its mistake: {stale}"
 
 
 def main(labs: list[str]) -> None:
