@@ -47,6 +47,7 @@ if TYPE_CHECKING:
 #: The grader thread's CPU clock, which decoding a result is charged by.
 decode_clock = time.thread_time
 
+
 class _Output:
     """A bounded buffer for what student code prints, shared by successive workers.
 
@@ -315,7 +316,6 @@ class _Worker:
         if before is not None and after is not None:
             self.awake.excuse(after - before)
         return True
-
 
     # -- limits and death --
 
