@@ -21,8 +21,11 @@ from __future__ import annotations
 
 import ast
 import functools
+import getopt
 import json
+import os
 import re
+import shlex
 import symtable
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -44,6 +47,20 @@ EXERCISE_TAG = "exercise"
 #: Cell magics whose body runs as Python in the user's namespace, so its definitions persist.
 #: ``%%timeit`` is not one: its body runs inside a timing function (nothing it defines persists).
 PYTHON_CELL_MAGICS = frozenset({"time", "capture"})
+
+#: Cell magics that write their body to a file (``%%file`` is IPython's alias of ``%%writefile``):
+#: kept as the ``run_cell_magic`` call, which the worker's shell runs in the notebook's folder.
+FILE_CELL_MAGICS = frozenset({"writefile", "file"})
+
+#: Line magics whose bindings cannot be known before running them.
+OPAQUE_LINE_MAGICS = frozenset({"run", "store"})
+
+#: Calls through which a cell binds names no analysis sees (``globals()[n] = f``,
+#: ``exec(src)``, ``vars()``/``locals()`` at module level: the module's namespace).
+_OPAQUE_CALLS = frozenset({"globals", "exec", "vars", "locals"})
+
+#: Names a notebook reads without binding them (a star import can still shadow them).
+_BUILTINS = frozenset(dir(__import__("builtins"))) | {"get_ipython", "display", "__name__"}
 
 #: Longest first line shown when naming a cell.
 LABEL_CHARS = 40
@@ -164,9 +181,9 @@ def to_python(source: str) -> str | None:
     own ``TransformerManager.transform_cell``: line magics become
     ``get_ipython().run_line_magic(...)``, ``!cmd`` ``get_ipython().system(...)``,
     ``x = !cmd`` ``get_ipython().getoutput(...)``. A cell magic that runs its
-    body as Python (``%%time``, ``%%capture``) becomes its body; any other cell
-    magic (``%%bash``, ``%%html``, ``%%timeit``, ``%%writefile``) defines no
-    Python name, so None.
+    body as Python (``%%time``, ``%%capture``) becomes its body; ``%%writefile``
+    stays the ``run_cell_magic`` call (it writes a file); any other cell magic
+    (``%%bash``, ``%%html``, ``%%timeit``) defines no Python name, so None.
 
     The result may still not parse (the student's syntax error): that is for
     the caller to find.
@@ -192,6 +209,8 @@ def _python_and_tree(source: str) -> tuple[str | None, ast.Module | SyntaxError 
     if magic is None:
         return python, tree
     name, body = magic
+    if name in FILE_CELL_MAGICS:
+        return python, tree
     return _python_and_tree(body) if name in PYTHON_CELL_MAGICS else (None, None)
 
 
@@ -225,49 +244,320 @@ class _Cell:
 
     index: int
     python: str | None
+    #: every name it may bind (or change) at module level
     binds: set[str] = field(default_factory=set)
+    #: the names it binds whatever branch runs (a binding in an `if`, `try`, loop or
+    #: `with suppress` body may not happen: it does not replace an earlier one)
+    sure: set[str] = field(default_factory=set)
     reads_now: set[str] = field(default_factory=set)
     reads_later: set[str] = field(default_factory=set)
     functions: list[str] = field(default_factory=list)
     #: function name -> the globals it assigns (``global X; X = ...``) when called
     global_writes: dict[str, set[str]] = field(default_factory=dict)
+    #: functions it defines that bind globals no analysis sees (``globals()[n] = ...``)
+    dynamic_writers: set[str] = field(default_factory=set)
     star: bool = False
+    #: it may bind any name: a star import, ``globals()``, ``exec``, ``setattr`` on the
+    #: module, ``%run``, ``%store -r``, or a call of a function that does one of these
+    opaque: bool = False
+    #: a ``%%writefile`` cell
+    writes_files: bool = False
+    #: it looks names up by a value known only when it runs (``globals()["_" + n]``):
+    #: it may read any function or class defined before it
+    reads_functions: bool = False
     #: its ``from __future__`` imports (they change how every later cell compiles)
     future: list[str] = field(default_factory=list)
     error: SyntaxError | None = None
 
 
-def _analyse(index: int, source: str) -> _Cell:
+def _analyse(index: int, source: str, files: dict[str, str] | None = None) -> _Cell:
+    """What one cell binds and reads; ``files`` maps each file the cells before it wrote
+    with ``%%writefile`` to its text (this cell's writes are added)."""
+    files = {} if files is None else files
     python, tree = _python_and_tree(source)
     cell = _Cell(index, python)
     if isinstance(tree, SyntaxError):
         cell.error = tree
     if not isinstance(tree, ast.Module):
         return cell
+    magic = _cell_magic(tree)
+    cell.writes_files = magic is not None and magic[0] in FILE_CELL_MAGICS
+    if cell.writes_files:
+        _note_written(files, tree)
     statements = _statements(python, tree)
     if "run_line_magic" in python:
         statements += _timed_statements(tree)  # `%time y = f()` binds y in the kernel
     for node, text in statements:
-        try:
-            table = symtable.symtable(text, "<cell>", "exec")
-        except SyntaxError:  # e.g. `return` outside a function: Jupyter refuses the cell too
-            continue
-        binds, now, later = _scope_names(table)
-        changed = _mutated(node)  # `d[k] = v`, `obj.x = v`, `N += 1`: read, then rebind
-        now |= changed
-        binds |= changed
-        cell.reads_now |= now - cell.binds
-        cell.reads_later |= later
-        cell.binds |= binds
-        if isinstance(node, ast.ImportFrom) and any(a.name == "*" for a in node.names):
-            cell.star = True
-        if isinstance(node, ast.ImportFrom) and node.module == "__future__":
-            cell.future.append(ast.unparse(node))
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
-            cell.functions.append(node.name)
-            if binds - {node.name}:
-                cell.global_writes[node.name] = binds - {node.name}
+        _add_statement(cell, node, text)
+    cell.opaque = cell.star or _opaque(tree)
+    if cell.opaque:
+        # Code it runs from strings (`exec("def f(): ...")`) or from files the notebook
+        # wrote (`%run -i helper.py`), and names it looks up by string
+        # (`globals()["_f_impl"]`): what it may bind and read.
+        for text in _code_strings(tree) + _run_in_namespace(tree, files):
+            sub = _Cell(index, text)
+            for node, part in _statements(text, ast.parse(text)):
+                _add_statement(sub, node, part)
+            cell.reads_now |= sub.reads_now - cell.binds
+            cell.reads_later |= sub.reads_later
+            cell.binds |= sub.binds
+        cell.reads_now |= _name_strings(tree) - cell.binds
+        cell.reads_functions = _looks_up_by_value(tree)
+    cell.dynamic_writers = {
+        node.name
+        for node in tree.body
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and _opaque(node)
+    }
     return cell
+
+
+def _add_statement(cell: _Cell, node: ast.stmt, text: str) -> None:
+    """Add what one top-level statement binds and reads to ``cell``."""
+    try:
+        table = symtable.symtable(text, "<cell>", "exec")
+    except SyntaxError:  # e.g. `return` outside a function: Jupyter refuses the cell too
+        return
+    binds, now, later = _scope_names(table)
+    changed = _mutated(node)  # `d[k] = v`, `obj.x = v`, `N += 1`: read, then rebind
+    maybe_changed = _mutated_inside(node) - changed
+    now |= changed | maybe_changed
+    sure = _surely_binds([node])
+    sure = (binds if sure is _ALL else sure & binds) | changed
+    if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+        sure &= {node.name}  # its `global X` assignments happen when it is called, if ever
+    binds |= changed | maybe_changed
+    cell.reads_now |= now - cell.binds
+    cell.reads_later |= later
+    cell.binds |= binds
+    cell.sure |= sure
+    if isinstance(node, ast.ImportFrom) and any(a.name == "*" for a in node.names):
+        cell.star = True
+    if isinstance(node, ast.ImportFrom) and node.module == "__future__":
+        cell.future.append(ast.unparse(node))
+    if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+        cell.functions.append(node.name)
+        if binds - {node.name}:
+            cell.global_writes[node.name] = binds - {node.name}
+
+
+# --- bindings that may not happen ----------------------------------------------------------------
+
+#: "Every name": what a statement that never falls through (``raise``) binds for what follows.
+_ALL = object()
+
+
+def _surely_binds(body: list[ast.stmt]) -> set[str] | object:
+    """Names every path through ``body`` binds, or :data:`_ALL` when no path falls through.
+
+    The statements of a cell are taken to run (one that raises stops the cell, and
+    is reported); what a branch, a loop, a ``try`` or ``with suppress(...)`` binds
+    is sure only when every way through it binds it.
+    """
+    sure: set[str] = set()
+    for node in body:
+        found = _statement_binds(node)
+        if found is _ALL:
+            return _ALL
+        sure |= found
+    return sure
+
+
+def _both(a, b):
+    if a is _ALL:
+        return b
+    if b is _ALL:
+        return a
+    return a & b
+
+
+def _statement_binds(node: ast.stmt) -> set[str] | object:
+    if isinstance(node, (ast.Raise, ast.Return, ast.Break, ast.Continue)):
+        return _ALL
+    if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+        return {node.name}
+    if isinstance(node, ast.Import):
+        return {(a.asname or a.name).partition(".")[0] for a in node.names}
+    if isinstance(node, ast.ImportFrom):
+        return {a.asname or a.name for a in node.names if a.name != "*"}
+    if isinstance(node, ast.If):
+        taken = _constant_test(node.test)
+        walrus = _walrus(node.test)
+        if taken is True:
+            branch = _surely_binds(node.body)
+        elif taken is False:
+            branch = _surely_binds(node.orelse)
+        else:
+            branch = _both(_surely_binds(node.body), _surely_binds(node.orelse))
+        return branch if branch is _ALL else branch | walrus
+    if isinstance(node, (ast.Try, getattr(ast, "TryStar", ast.Try))):
+        normal = _surely_binds(node.body + node.orelse)
+        for handler in node.handlers:
+            normal = _both(normal, _surely_binds(handler.body))
+        final = _surely_binds(node.finalbody)
+        return _ALL if _ALL in (normal, final) else normal | final
+    if isinstance(node, (ast.With, ast.AsyncWith)):
+        if any(_suppresses(item.context_expr) for item in node.items):
+            return set()
+        targets = {n.id for item in node.items for n in ast.walk(item.optional_vars or ast.Pass())
+                   if isinstance(n, ast.Name)}
+        inner = _surely_binds(node.body)
+        return inner if inner is _ALL else inner | targets
+    if isinstance(node, (ast.For, ast.AsyncFor, ast.While)):
+        return _walrus(node.iter if isinstance(node, (ast.For, ast.AsyncFor)) else node.test)
+    if isinstance(node, getattr(ast, "Match", ())):
+        return _walrus(node.subject)  # which case matches is known only when it runs
+    # A simple statement: every name it binds (assignment targets, imports, walrus).
+    names: set[str] = set()
+    for sub in ast.walk(node):
+        if isinstance(sub, ast.Name) and isinstance(sub.ctx, (ast.Store, ast.Del)):
+            names.add(sub.id)
+    if isinstance(node, ast.AnnAssign) and node.value is None:
+        return set()  # `x: int` binds nothing
+    return names | _walrus(node)
+
+
+def _walrus(node: ast.AST) -> set[str]:
+    return {n.target.id for n in ast.walk(node) if isinstance(n, ast.NamedExpr)}
+
+
+def _constant_test(test: ast.expr) -> bool | None:
+    """The value of an ``if`` test known before running: a constant, or ``__name__ == "__main__"``
+    (a notebook runs as ``__main__``)."""
+    if isinstance(test, ast.Constant):
+        return bool(test.value)
+    if (
+        isinstance(test, ast.Compare)
+        and len(test.ops) == 1
+        and isinstance(test.ops[0], (ast.Eq, ast.NotEq))
+    ):
+        sides = {ast.unparse(test.left), ast.unparse(test.comparators[0])}
+        if sides == {"__name__", "'__main__'"}:
+            return isinstance(test.ops[0], ast.Eq)
+    return None
+
+
+def _suppresses(expr: ast.expr) -> bool:
+    """``with suppress(...)`` (or ``contextlib.suppress``): its body may stop anywhere."""
+    func = expr.func if isinstance(expr, ast.Call) else expr
+    name = func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", "")
+    return name == "suppress"
+
+
+def _opaque(tree: ast.AST) -> bool:
+    """Whether ``tree`` may bind module names no analysis sees.
+
+    ``globals()``, ``exec``, module-level ``vars()``/``locals()``, ``sys.modules``,
+    ``__main__``, ``setattr``/``delattr`` on a module, ``%run`` and ``%store``.
+    """
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call):
+            func = node.func
+            if isinstance(func, ast.Name) and func.id in _OPAQUE_CALLS:
+                return True
+            args = _shell_call(node, "run_line_magic", 2)
+            if args is not None and args[0] in OPAQUE_LINE_MAGICS:
+                return True
+        if isinstance(node, ast.Attribute) and node.attr == "modules":
+            if isinstance(node.value, ast.Name) and node.value.id == "sys":
+                return True
+        if isinstance(node, ast.Name) and node.id == "__main__":
+            return True
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            modules = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module]
+            if "__main__" in modules:
+                return True
+        if isinstance(node, ast.Constant) and node.value == "__main__":
+            return True  # `__import__("__main__")`, `sys.modules["__main__"]`
+    return False
+
+
+def _code_strings(tree: ast.AST) -> list[str]:
+    """String constants of ``tree`` that are Python binding something (code for ``exec``)."""
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str):
+            try:
+                parsed = ast.parse(node.value)
+            except (SyntaxError, ValueError):
+                continue
+            if any(not isinstance(s, ast.Expr) for s in parsed.body):
+                found.append(node.value)
+    return found
+
+
+def _note_written(files: dict[str, str], tree: ast.Module) -> None:
+    """Record the file a ``%%writefile [-a] NAME`` cell writes, with its text."""
+    _, line, body = _shell_call(tree.body[0].value, "run_cell_magic", 3)
+    try:
+        words = shlex.split(line)
+    except ValueError:
+        return
+    names = [w for w in words if w not in ("-a", "--append")]
+    if len(names) == 1:
+        name = os.path.normpath(names[0])
+        append = len(names) < len(words)
+        files[name] = (files.get(name, "") if append else "") + body
+
+
+def _run_in_namespace(tree: ast.AST, files: dict[str, str]) -> list[str]:
+    """The text of the notebook-written files that ``%run -i FILE`` runs in its namespace
+    (``.ipy`` files as Python, when they are)."""
+    found = []
+    for node in ast.walk(tree):
+        args = _shell_call(node, "run_line_magic", 2)
+        if args is None or args[0] != "run":
+            continue
+        try:
+            opts, rest = getopt.getopt(shlex.split(args[1]), "nidtN:b:pD:l:rs:T:em:G")
+        except (getopt.GetoptError, ValueError):
+            continue
+        if rest and "-i" in dict(opts):
+            name = os.path.normpath(rest[0])
+            text = files.get(name, files.get(name + ".py"))
+            if text is not None:
+                found.append(text)
+    return found
+
+
+def _looks_up_by_value(tree: ast.AST) -> bool:
+    """``globals()[name]``, ``globals().get(name)``, ``getattr(module, name)`` with a name
+    known only when the cell runs."""
+    for node in ast.walk(tree):
+        if (
+            isinstance(node, ast.Subscript)
+            and isinstance(node.ctx, ast.Load)
+            and isinstance(node.value, ast.Call)
+            and isinstance(node.value.func, ast.Name)
+            and node.value.func.id in _OPAQUE_CALLS
+            and not isinstance(node.slice, ast.Constant)
+        ):
+            return True
+        if isinstance(node, ast.Call) and (
+            (
+                isinstance(node.func, ast.Name)
+                and node.func.id == "getattr"
+                and len(node.args) >= 2
+                and not isinstance(node.args[1], ast.Constant)
+            )
+            or (
+                isinstance(node.func, ast.Attribute)
+                and node.func.attr == "get"
+                and isinstance(node.func.value, ast.Call)
+                and isinstance(node.func.value.func, ast.Name)
+                and node.func.value.func.id in _OPAQUE_CALLS
+            )
+        ):
+            return True
+    return False
+
+
+def _name_strings(tree: ast.AST) -> set[str]:
+    """String constants of ``tree`` that are identifiers (names looked up by string)."""
+    return {
+        node.value
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value.isidentifier()
+    }
 
 
 def _statements(python: str, tree: ast.Module) -> list[tuple[ast.stmt, str]]:
@@ -359,6 +649,22 @@ def _mutated(node: ast.stmt) -> set[str]:
     return roots
 
 
+def _mutated_inside(node: ast.stmt) -> set[str]:
+    """Names changed (:func:`_mutated`) by statements nested in a compound statement
+    (``for k in KEYS: PARAMS[k] = 0``), not inside functions or classes it defines."""
+    found: set[str] = set()
+    if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+        return found
+    for field_name in ("body", "orelse", "finalbody", "handlers", "cases"):
+        for child in getattr(node, field_name, None) or ():
+            if isinstance(child, ast.stmt):
+                found |= _mutated(child) | _mutated_inside(child)
+            else:  # an except handler or a match case: its statements
+                for stmt in child.body:
+                    found |= _mutated(stmt) | _mutated_inside(stmt)
+    return found
+
+
 def _timed_statements(tree: ast.Module) -> list[tuple[ast.stmt, str]]:
     """The statements of ``%time STATEMENT`` line magics (they run in the user's namespace)."""
     found = []
@@ -379,45 +685,65 @@ def needed_cells(cells: list[_Cell], graded: Iterable[str]) -> list[_Cell]:
     """The cells a kernel must run for ``graded`` and every name they use, in notebook order.
 
     A name read when a cell runs (top level, decorators, defaults, class bodies)
-    resolves to the last cell binding it *before* that cell; a global read inside
-    a function resolves when it is called, so to the last binding cell of the
-    whole notebook. Cells with a star import bind names no analysis can see:
-    they are always needed.
+    resolves to the cells binding it *before* that cell; a global read inside a
+    function resolves when it is called, so to the cells binding it anywhere. In
+    both cases the cells are taken from the last one back, up to and including the
+    last that binds the name whatever branch runs (:attr:`_Cell.sure`): a binding
+    that may not happen (``if False:``, ``try: from old import f except
+    ImportError: pass``) does not replace the one before it, so both run, in
+    order, and Python decides. A cell whose bindings cannot be known
+    (:attr:`_Cell.opaque`) may bind any name, so it is taken like such a binding;
+    a builtin name nothing binds only a star import can shadow. ``%%writefile``
+    cells always run (any cell may read the files they write).
     """
     writers: dict[str, set[str]] = {}
+    dynamic: set[str] = set()
     for cell in cells:
         writers.update(cell.global_writes)
-    for cell in cells:  # a cell calling `setup()` binds the globals setup() assigns
+        dynamic |= cell.dynamic_writers
+    for cell in cells:  # a cell calling `setup()` may bind the globals setup() assigns
         for name in cell.reads_now & writers.keys():
             cell.binds |= writers[name]
+        if cell.reads_now & dynamic:  # `@export` that writes `globals()`
+            cell.opaque = True
     binders: dict[str, list[int]] = {}
     for position, cell in enumerate(cells):
         for name in cell.binds:
             binders.setdefault(name, []).append(position)
+    opaque = [p for p, cell in enumerate(cells) if cell.opaque]
+    star = [p for p, cell in enumerate(cells) if cell.star]
+    candidates: dict[str, list[int]] = {}
     needed: set[int] = set()
     todo: list[int] = []
 
-    def last_binder(name: str, before: int | None) -> None:
-        for position in reversed(binders.get(name, [])):
-            if before is None or position < before:
-                if position not in needed:
-                    needed.add(position)
-                    todo.append(position)
+    def resolve(name: str, before: int | None) -> None:
+        if name not in candidates:
+            own = binders.get(name, [])
+            extra = star if name in _BUILTINS and not own else opaque
+            candidates[name] = sorted(set(own) | set(extra))
+        for position in reversed(candidates[name]):
+            if before is not None and position >= before:
+                continue
+            if position not in needed:
+                needed.add(position)
+                todo.append(position)
+            if name in cells[position].sure:
                 return
 
     for name in graded:
-        last_binder(name, None)
-    for position, cell in enumerate(cells):
-        if cell.star and todo:
-            needed.add(position)
-            todo.append(position)
+        resolve(name, None)
     while todo:
         position = todo.pop()
         cell = cells[position]
-        for name in cell.reads_now:
-            last_binder(name, position)
+        reads_now = set(cell.reads_now)
+        if cell.reads_functions:  # it may read any function defined before it
+            reads_now.update(n for c in cells[:position] for n in c.functions)
+        for name in reads_now:
+            resolve(name, position)
         for name in cell.reads_later:
-            last_binder(name, None)
+            resolve(name, None)
+    if needed:
+        needed |= {p for p, cell in enumerate(cells) if cell.writes_files}
     return [cells[p] for p in sorted(needed)]
 
 
@@ -542,6 +868,7 @@ def load_notebook(
         )
 
     cells: list[_Cell] = []
+    files: dict[str, str] = {}  # what the %%writefile cells so far wrote
     raw: dict[int, str] = {}
     labels: dict[int, str] = {}
     exercise_cells: list[int] = []
@@ -562,7 +889,7 @@ def load_notebook(
             exercise_cells.append(index)
         raw[index] = source
         labels[index] = cell_label(index, source)
-        cells.append(_analyse(index, source))
+        cells.append(_analyse(index, source, files))
 
     if graded is None:
         names = [] if every_function else list(lab_exercises(lab or meta_lab))
