@@ -270,9 +270,10 @@ class _Cell:
     error: SyntaxError | None = None
 
 
-def _analyse(index: int, source: str, files: dict[str, str] | None = None) -> _Cell:
+def _analyse(index: int, source: str, files: dict[str, str] | None = None, depth: int = 0) -> _Cell:
     """What one cell binds and reads; ``files`` maps each file the cells before it wrote
-    with ``%%writefile`` to its text (this cell's writes are added)."""
+    with ``%%writefile`` to its text (this cell's writes are added). ``depth`` counts
+    the code strings and files analysed inside one another (a file may run itself)."""
     files = {} if files is None else files
     python, tree = _python_and_tree(source)
     cell = _Cell(index, python)
@@ -294,10 +295,8 @@ def _analyse(index: int, source: str, files: dict[str, str] | None = None) -> _C
         # Code it runs from strings (`exec("def f(): ...")`) or from files the notebook
         # wrote (`%run -i helper.py`), and names it looks up by string
         # (`globals()["_f_impl"]`): what it may bind and read.
-        for text in _code_strings(tree) + _run_in_namespace(tree, files):
-            sub = _Cell(index, text)
-            for node, part in _statements(text, ast.parse(text)):
-                _add_statement(sub, node, part)
+        for text in _code_strings(tree) + _run_in_namespace(tree, files) if depth < 3 else ():
+            sub = _analyse(index, text, dict(files), depth + 1)
             cell.reads_now |= sub.reads_now - cell.binds
             cell.reads_later |= sub.reads_later
             cell.binds |= sub.binds
@@ -500,8 +499,8 @@ def _note_written(files: dict[str, str], tree: ast.Module) -> None:
 
 
 def _run_in_namespace(tree: ast.AST, files: dict[str, str]) -> list[str]:
-    """The text of the notebook-written files that ``%run -i FILE`` runs in its namespace
-    (``.ipy`` files as Python, when they are)."""
+    """The text of the notebook-written files that ``%run`` runs in the notebook's namespace:
+    with ``-i``, and ``.ipy`` files (IPython source)."""
     found = []
     for node in ast.walk(tree):
         args = _shell_call(node, "run_line_magic", 2)
@@ -511,7 +510,7 @@ def _run_in_namespace(tree: ast.AST, files: dict[str, str]) -> list[str]:
             opts, rest = getopt.getopt(shlex.split(args[1]), "nidtN:b:pD:l:rs:T:em:G")
         except (getopt.GetoptError, ValueError):
             continue
-        if rest and "-i" in dict(opts):
+        if rest and ("-i" in dict(opts) or rest[0].lower().endswith(".ipy")):
             name = os.path.normpath(rest[0])
             text = files.get(name, files.get(name + ".py"))
             if text is not None:
