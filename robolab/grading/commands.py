@@ -258,7 +258,7 @@ def check(notebook: Path) -> int:
 
 
 def _run_checks(visible: list, namespace: dict, problems: list) -> int:
-    """Print the load problems, run each visible check on the notebook's function; count failures."""
+    """Print the load problems, run each visible check on its function; count the failures."""
     from robolab.checks.base import CheckFailed
 
     for p in sorted(problems, key=lambda p: p.cell_index):

@@ -135,7 +135,9 @@ def _display(*objects: object, **options: object) -> None:
     return None
 
 
-def new_namespace(module_name: str, namespace: dict | None = None, folder: str | None = None) -> dict:
+def new_namespace(
+    module_name: str, namespace: dict | None = None, folder: str | None = None
+) -> dict:
     """A module namespace whose builtins include ``get_ipython`` and ``display``, as in a kernel.
 
     They live in the namespace's own ``__builtins__``, so they are no

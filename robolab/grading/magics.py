@@ -42,7 +42,7 @@ class FolderError(PermissionError):
 
 
 def inside(folder: str, name: str) -> str | None:
-    """The real path of ``name`` (relative to ``folder``) when it stays inside ``folder``, else None.
+    """The real path of ``name`` (relative to ``folder``) if it stays inside ``folder``, else None.
 
     Symbolic links are resolved first, so a link pointing out of the folder is outside too.
     """

@@ -397,8 +397,12 @@ def _statement_binds(node: ast.stmt) -> set[str] | object:
     if isinstance(node, (ast.With, ast.AsyncWith)):
         if any(_suppresses(item.context_expr) for item in node.items):
             return set()
-        targets = {n.id for item in node.items for n in ast.walk(item.optional_vars or ast.Pass())
-                   if isinstance(n, ast.Name)}
+        targets = {
+            n.id
+            for item in node.items
+            for n in ast.walk(item.optional_vars or ast.Pass())
+            if isinstance(n, ast.Name)
+        }
         inner = _surely_binds(node.body)
         return inner if inner is _ALL else inner | targets
     if isinstance(node, (ast.For, ast.AsyncFor, ast.While)):
@@ -462,7 +466,9 @@ def _opaque(tree: ast.AST) -> bool:
         if isinstance(node, ast.Name) and node.id == "__main__":
             return True
         if isinstance(node, (ast.Import, ast.ImportFrom)):
-            modules = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module]
+            modules = (
+                [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module]
+            )
             if "__main__" in modules:
                 return True
         if isinstance(node, ast.Constant) and node.value == "__main__":
@@ -555,7 +561,9 @@ def _name_strings(tree: ast.AST) -> set[str]:
     return {
         node.value
         for node in ast.walk(tree)
-        if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value.isidentifier()
+        if isinstance(node, ast.Constant)
+        and isinstance(node.value, str)
+        and node.value.isidentifier()
     }
 
 

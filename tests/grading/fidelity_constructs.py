@@ -75,7 +75,9 @@ def _impl(source: str, f: str) -> str:
 
 
 def _after(cells: list[Cell], at: int, *new: str) -> list[Cell]:
-    return cells[: at + 1] + [Cell(textwrap.dedent(c).strip() + "\n") for c in new] + cells[at + 1 :]
+    return (
+        cells[: at + 1] + [Cell(textwrap.dedent(c).strip() + "\n") for c in new] + cells[at + 1 :]
+    )
 
 
 def _before(cells: list[Cell], at: int, *new: str) -> list[Cell]:
@@ -105,140 +107,88 @@ def _without_future(source: str) -> tuple[str, str]:
     return "\n".join(future), "\n".join(rest) + "\n"
 
 
-# --- a binding in a branch that never runs does not replace the one before ------------------
-
 BRANCHES = "a binding in a branch that may not run"
-
-
-@construct(BRANCHES, "if-false-redefinition")
-def _if_false(cells, at, f, stem):
-    return _after(cells, at, f"if False:\n    def {f}(*args, **kwargs):\n        return None")
-
-
-@construct(BRANCHES, "try-import-old-version")
-def _try_import(cells, at, f, stem):
-    return _after(cells, at, f"try:\n    from old_{stem} import {f}\nexcept ImportError:\n    pass")
-
-
-@construct(BRANCHES, "for-over-nothing")
-def _for_nothing(cells, at, f, stem):
-    return _after(cells, at, f"for {f} in []:\n    pass")
-
-
-@construct(BRANCHES, "while-false")
-def _while_false(cells, at, f, stem):
-    return _after(cells, at, f"while False:\n    {f} = None")
-
-
-@construct(BRANCHES, "with-suppress-import")
-def _with_suppress(cells, at, f, stem):
-    return _after(
-        cells,
-        at,
-        "import contextlib\n\n"
-        f"with contextlib.suppress(ImportError):\n    from old_{stem} import {f}",
-    )
-
-
-@construct(BRANCHES, "match-no-case")
-def _match(cells, at, f, stem):
-    return _after(cells, at, f'match "graded":\n    case "draft":\n        {f} = None')
-
-
-@construct(BRANCHES, "define-if-missing")
-def _define_if_missing(cells, at, f, stem):
-    return _after(cells, at, f"try:\n    {f}\nexcept NameError:\n    {f} = None")
-
-
-@construct(BRANCHES, "if-else-both-bind")
-def _if_else(cells, at, f, stem):
-    return _rebound(
-        cells,
-        at,
-        f,
-        f"FAST_{stem} = True\nif FAST_{stem}:\n    {f} = _{f}_impl\nelse:\n    {f} = _{f}_impl",
-    )
-
-
-@construct(BRANCHES, "guarded-by-globals")
-def _guarded(cells, at, f, stem):
-    return _after(cells, at, f'if "{f}" not in globals():\n    {f} = None')
-
-
-# --- the notebook is __main__ ---------------------------------------------------------------
-
 MAIN = "the notebook runs as __main__"
+DYNAMIC = "a binding no analysis can see"
+FILES = "files the notebook writes and runs"
+
+#: Styles that add one cell after f's exercise cell, which still defines f; the cell's
+#: source names f as ``{f}`` and a unique stem as ``{stem}``.
+AFTER = {
+    BRANCHES: {
+        "if-false-redefinition": "if False:\n    def {f}(*args, **kwargs):\n        return None",
+        "try-import-old-version": "try:\n    from old_{stem} import {f}\n"
+        "except ImportError:\n    pass",
+        "for-over-nothing": "for {f} in []:\n    pass",
+        "while-false": "while False:\n    {f} = None",
+        "with-suppress-import": "import contextlib\n\nwith contextlib.suppress(ImportError):\n"
+        "    from old_{stem} import {f}",
+        "match-no-case": 'match "graded":\n    case "draft":\n        {f} = None',
+        "define-if-missing": "try:\n    {f}\nexcept NameError:\n    {f} = None",
+        "guarded-by-globals": 'if "{f}" not in globals():\n    {f} = None',
+    },
+}
+
+#: Styles that rename f ``_f_impl`` in its exercise cell and bind f again in a cell
+#: after it, without the exercise tag.
+REBOUND = {
+    BRANCHES: {
+        "if-else-both-bind": "FAST_{stem} = True\nif FAST_{stem}:\n    {f} = _{f}_impl\n"
+        "else:\n    {f} = _{f}_impl",
+    },
+    MAIN: {
+        # pickle stores a function as `__main__.<name>`: it loads back only when the
+        # notebook's module is `sys.modules["__main__"]`, as in Jupyter.
+        "pickled-by-reference": "import pickle\n\n{f} = pickle.loads(pickle.dumps(_{f}_impl))",
+        "import-main-attribute": "import __main__\n\n__main__.{f} = _{f}_impl",
+        "sys-modules-main-dict": "import sys\n\n"
+        'sys.modules["__main__"].__dict__["{f}"] = _{f}_impl',
+    },
+    DYNAMIC: {
+        "globals-item": 'globals()["{f}"] = _{f}_impl',
+        "globals-loop-by-name": 'for _n in ["{f}"]:\n'
+        '    globals()[_n] = globals()["_" + _n + "_impl"]',
+        "globals-update": 'globals().update({{"{f}": _{f}_impl}})',
+        "vars-item": 'vars()["{f}"] = _{f}_impl',
+        "locals-item": 'locals()["{f}"] = _{f}_impl',
+        "exec-assignment": 'exec("{f} = _{f}_impl")',
+        "exec-compiled": 'exec(compile("{f} = _{f}_impl", "<answers>", "exec"))',
+        "setattr-on-module": 'import sys\n\nsetattr(sys.modules[__name__], "{f}", _{f}_impl)',
+    },
+}
+
+
+def _after_style(template: str) -> Style:
+    return lambda cells, at, f, stem: _after(cells, at, template.format(f=f, stem=stem))
+
+
+def _rebound_style(template: str) -> Style:
+    return lambda cells, at, f, stem: _rebound(cells, at, f, template.format(f=f, stem=stem))
+
+
+for _group, _styles in AFTER.items():
+    for _name, _template in _styles.items():
+        construct(_group, _name)(_after_style(_template))
+for _group, _styles in REBOUND.items():
+    for _name, _template in _styles.items():
+        construct(_group, _name)(_rebound_style(_template))
+
+
+# --- styles that rewrite the exercise cell itself ----------------------------------------------
 
 
 @construct(MAIN, "main-guard")
 def _main_guard(cells, at, f, stem):
     future, rest = _without_future(cells[at].source)
     body = textwrap.indent(rest, "    ")
-    return _replace(cells, at, (future + "\n" if future else "") + f'if __name__ == "__main__":\n{body}')
-
-
-@construct(MAIN, "pickled-by-reference")
-def _pickled(cells, at, f, stem):
-    # pickle stores a function as `__main__.<name>`: it loads back only when the
-    # notebook's module is `sys.modules["__main__"]`, as in Jupyter.
-    return _rebound(cells, at, f, f"import pickle\n\n{f} = pickle.loads(pickle.dumps(_{f}_impl))")
+    return _replace(
+        cells, at, (future + "\n" if future else "") + f'if __name__ == "__main__":\n{body}'
+    )
 
 
 @construct(MAIN, "name-is-main-when-called")
 def _name_is_main(cells, at, f, stem):
     return _wrapped(cells, at, f, 'assert __name__ == "__main__", __name__')
-
-
-@construct(MAIN, "import-main-attribute")
-def _import_main(cells, at, f, stem):
-    return _rebound(cells, at, f, f"import __main__\n\n__main__.{f} = _{f}_impl")
-
-
-@construct(MAIN, "sys-modules-main-dict")
-def _sys_modules_main(cells, at, f, stem):
-    return _rebound(cells, at, f, f'import sys\n\nsys.modules["__main__"].__dict__["{f}"] = _{f}_impl')
-
-
-# --- a cell without the exercise tag binds f through the namespace --------------------------
-
-DYNAMIC = "a binding no analysis can see"
-
-
-@construct(DYNAMIC, "globals-item")
-def _globals_item(cells, at, f, stem):
-    return _rebound(cells, at, f, f'globals()["{f}"] = _{f}_impl')
-
-
-@construct(DYNAMIC, "globals-loop-by-name")
-def _globals_loop(cells, at, f, stem):
-    return _rebound(
-        cells, at, f, f'for _n in ["{f}"]:\n    globals()[_n] = globals()["_" + _n + "_impl"]'
-    )
-
-
-@construct(DYNAMIC, "globals-update")
-def _globals_update(cells, at, f, stem):
-    return _rebound(cells, at, f, f'globals().update({{"{f}": _{f}_impl}})')
-
-
-@construct(DYNAMIC, "vars-item")
-def _vars_item(cells, at, f, stem):
-    return _rebound(cells, at, f, f'vars()["{f}"] = _{f}_impl')
-
-
-@construct(DYNAMIC, "locals-item")
-def _locals_item(cells, at, f, stem):
-    return _rebound(cells, at, f, f'locals()["{f}"] = _{f}_impl')
-
-
-@construct(DYNAMIC, "exec-assignment")
-def _exec_assignment(cells, at, f, stem):
-    return _rebound(cells, at, f, f'exec("{f} = _{f}_impl")')
-
-
-@construct(DYNAMIC, "exec-compiled")
-def _exec_compiled(cells, at, f, stem):
-    return _rebound(cells, at, f, f'exec(compile("{f} = _{f}_impl", "<answers>", "exec"))')
 
 
 @construct(DYNAMIC, "exec-whole-cell")
@@ -255,16 +205,12 @@ def _setattr_module(cells, at, f, stem):
 def _exporting_decorator(cells, at, f, stem):
     source = re.sub(rf"^def {f}\(", f"@export_{stem}\ndef _{f}_impl(", cells[at].source, flags=re.M)
     exporter = (
-        f"def export_{stem}(fn):\n"
-        "    globals()[fn.__name__[1:-len('_impl')]] = fn\n"
-        "    return fn\n"
+        f"def export_{stem}(fn):\n    globals()[fn.__name__[1:-len('_impl')]] = fn\n    return fn\n"
     )
     return _before(_replace(cells, at, source), at, exporter)
 
 
 # --- files the notebook writes: %%writefile, import, %run ---------------------------------
-
-FILES = "files the notebook writes and runs"
 
 
 def _module(cells: list[Cell], at: int, stem: str, use: str, tags=None) -> list[Cell]:
@@ -334,7 +280,10 @@ def _writefile_data(cells, at, f, stem):
 def _file_at_call(cells, at, f, stem):
     # Read when f is called: the working folder is still the notebook's then.
     cells = _wrapped(
-        cells, at, f, f'assert open("{stem}.txt").read().strip() == "ok", "the working folder changed"'
+        cells,
+        at,
+        f,
+        f'assert open("{stem}.txt").read().strip() == "ok", "the working folder changed"',
     )
     return _before(cells, at, f"%%writefile {stem}.txt\nok\n")
 

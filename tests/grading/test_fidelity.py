@@ -289,11 +289,20 @@ def _slots(group: str) -> list:
     ]
 
 
+def pytest_generate_tests(metafunc):
+    """Each construct's class is run for every exercise given one of its styles."""
+    group = getattr(metafunc.cls, "CONSTRUCT", None)
+    if group is not None:
+        metafunc.parametrize("style, variant, exercise", _slots(group))
+
+
 class _ConstructChecks:
     """For each exercise given a style of the construct: Jupyter holds a working function
     (its visible check passed there), and grading gives the exercise every point."""
 
-    def check(self, jupyter, graded, style: str, variant: str, exercise: str) -> None:
+    CONSTRUCT: str
+
+    def test_the_exercise_earns_full_marks(self, jupyter, graded, style, variant, exercise):
         ok, details = jupyter[variant]
         assert ok, f"{variant} in Jupyter:\n{details}"
         result = graded[variant]
@@ -307,24 +316,16 @@ class _ConstructChecks:
 
 
 class TestBindingsInBranchesThatMayNotRun(_ConstructChecks):
-    @pytest.mark.parametrize("style, variant, exercise", _slots(BRANCHES))
-    def test_the_exercise_earns_full_marks(self, jupyter, graded, style, variant, exercise):
-        self.check(jupyter, graded, style, variant, exercise)
+    CONSTRUCT = BRANCHES
 
 
 class TestTheNotebookRunsAsMain(_ConstructChecks):
-    @pytest.mark.parametrize("style, variant, exercise", _slots(MAIN))
-    def test_the_exercise_earns_full_marks(self, jupyter, graded, style, variant, exercise):
-        self.check(jupyter, graded, style, variant, exercise)
+    CONSTRUCT = MAIN
 
 
 class TestBindingsNoAnalysisSees(_ConstructChecks):
-    @pytest.mark.parametrize("style, variant, exercise", _slots(DYNAMIC))
-    def test_the_exercise_earns_full_marks(self, jupyter, graded, style, variant, exercise):
-        self.check(jupyter, graded, style, variant, exercise)
+    CONSTRUCT = DYNAMIC
 
 
 class TestFilesTheNotebookWritesAndRuns(_ConstructChecks):
-    @pytest.mark.parametrize("style, variant, exercise", _slots(FILES))
-    def test_the_exercise_earns_full_marks(self, jupyter, graded, style, variant, exercise):
-        self.check(jupyter, graded, style, variant, exercise)
+    CONSTRUCT = FILES

@@ -29,7 +29,10 @@ NOTEBOOKS = [
     ("if-true", ["def f():\n    return 1", "if True:\n    def f():\n        return 2"], 2),
     (
         "try-import-after",
-        ["def f():\n    return 1", "try:\n    from old_answers import f\nexcept ImportError:\n    pass"],
+        [
+            "def f():\n    return 1",
+            "try:\n    from old_answers import f\nexcept ImportError:\n    pass",
+        ],
         1,
     ),
     ("for-nothing", ["def f():\n    return 1", "for f in []:\n    pass"], 1),
@@ -37,48 +40,88 @@ NOTEBOOKS = [
     ("while-false", ["def f():\n    return 1", "while False:\n    f = None"], 1),
     (
         "with-suppress",
-        ["def f():\n    return 1", "import contextlib\nwith contextlib.suppress(ImportError):\n"
-         "    from old_answers import f"],
+        [
+            "def f():\n    return 1",
+            "import contextlib\nwith contextlib.suppress(ImportError):\n"
+            "    from old_answers import f",
+        ],
         1,
     ),
     ("match", ["def f():\n    return 1", 'match "a":\n    case "b":\n        f = None'], 1),
-    ("define-if-missing", ["def f():\n    return 1", "try:\n    f\nexcept NameError:\n    f = None"], 1),
+    (
+        "define-if-missing",
+        ["def f():\n    return 1", "try:\n    f\nexcept NameError:\n    f = None"],
+        1,
+    ),
     ("guarded-by-globals", ["def f():\n    return 1", "if 'f' not in globals():\n    f = None"], 1),
     ("main-guard", ["if __name__ == '__main__':\n    def f():\n        return 1"], 1),
     ("not-main-guard", ["def f():\n    return 1", "if __name__ != '__main__':\n    f = None"], 1),
     ("globals-item", ["def _g():\n    return 1", "globals()['f'] = _g"], 1),
     (
         "globals-by-value",
-        ["def _f_impl():\n    return 1", "x = 1", "for n in ['f']:\n    globals()[n] = globals()['_' + n + '_impl']"],
+        [
+            "def _f_impl():\n    return 1",
+            "x = 1",
+            "for n in ['f']:\n    globals()[n] = globals()['_' + n + '_impl']",
+        ],
         1,
     ),
     ("exec-then-value", ["exec('def f():\\n    return K')", "K = 5"], 5),
-    ("setattr-module", ["def _g():\n    return 1", "import sys\nsetattr(sys.modules[__name__], 'f', _g)"], 1),
+    (
+        "setattr-module",
+        ["def _g():\n    return 1", "import sys\nsetattr(sys.modules[__name__], 'f', _g)"],
+        1,
+    ),
     ("import-main", ["def _g():\n    return 4", "import __main__\n__main__.f = _g"], 4),
     (
         "exporting-decorator",
-        ["def export(fn):\n    globals()[fn.__name__[1:]] = fn\n    return fn", "@export\ndef _f():\n    return 3"],
+        [
+            "def export(fn):\n    globals()[fn.__name__[1:]] = fn\n    return fn",
+            "@export\ndef _f():\n    return 3",
+        ],
         3,
     ),
-    ("writefile-import", ["%%writefile helper_a.py\ndef f():\n    return 7\n", "from helper_a import f"], 7),
-    ("writefile-star", ["%%writefile helper_b.py\ndef f():\n    return 8\n", "from helper_b import *"], 8),
+    (
+        "writefile-import",
+        ["%%writefile helper_a.py\ndef f():\n    return 7\n", "from helper_a import f"],
+        7,
+    ),
+    (
+        "writefile-star",
+        ["%%writefile helper_b.py\ndef f():\n    return 8\n", "from helper_b import *"],
+        8,
+    ),
     ("writefile-run", ["%%writefile s.py\nK = 3\ndef f():\n    return K\n", "%run s.py"], 3),
     ("run-interactive", ["K = 4", "%%writefile s.py\ndef f():\n    return K\n", "%run -i s.py"], 4),
     (
         "writefile-append",
-        ["%%writefile helper_c.py\nK = 2\n", "%%writefile -a helper_c.py\ndef f():\n    return K\n",
-         "import helper_c\nf = helper_c.f"],
+        [
+            "%%writefile helper_c.py\nK = 2\n",
+            "%%writefile -a helper_c.py\ndef f():\n    return K\n",
+            "import helper_c\nf = helper_c.f",
+        ],
         2,
     ),
-    ("pickle-by-reference", ["import pickle\ndef _g():\n    return 9\nf = pickle.loads(pickle.dumps(_g))"], 9),
+    (
+        "pickle-by-reference",
+        ["import pickle\ndef _g():\n    return 9\nf = pickle.loads(pickle.dumps(_g))"],
+        9,
+    ),
     ("store-restore", ["%store -r\nK = 6", "def f():\n    return K"], 6),
     (
         "data-file",
-        ['%%writefile table.json\n{"k": 11}\n', "import json\nT = json.load(open('table.json'))",
-         "def f():\n    return T['k']"],
+        [
+            '%%writefile table.json\n{"k": 11}\n',
+            "import json\nT = json.load(open('table.json'))",
+            "def f():\n    return T['k']",
+        ],
         11,
     ),
-    ("raise-in-other-branch", ["def f():\n    return 1", "if 1 > 2:\n    raise ValueError\nelse:\n    f = lambda: 2"], 2),
+    (
+        "raise-in-other-branch",
+        ["def f():\n    return 1", "if 1 > 2:\n    raise ValueError\nelse:\n    f = lambda: 2"],
+        2,
+    ),
 ]
 
 
@@ -135,7 +178,10 @@ def test_the_notebook_module_is_main_and_is_put_back(tmp_path):
     main, cwd, path = sys.modules["__main__"], os.getcwd(), list(sys.path)
     folder = tmp_path / "scratch"
     folder.mkdir()
-    cells = [(0, "%%writefile mine.py\nX = 1\n"), (1, "import mine, sys\nME = sys.modules[__name__]")]
+    cells = [
+        (0, "%%writefile mine.py\nX = 1\n"),
+        (1, "import mine, sys\nME = sys.modules[__name__]"),
+    ]
     from robolab.grading.notebook import to_python
 
     with Notebook(folder) as notebook:
