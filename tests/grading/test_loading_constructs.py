@@ -15,9 +15,10 @@ import sys
 
 import pytest
 
+from robolab.grading.bindings import surely_binds
 from robolab.grading.kernel import Notebook, load_budget
 from robolab.grading.labs import project_root
-from robolab.grading.notebook import _surely_binds, load_notebook
+from robolab.grading.notebook import load_notebook
 from robolab.grading.proxy import open_submission
 from tests.grading import TEST_LIMITS, write_notebook
 
@@ -171,7 +172,7 @@ def test_scratch_cells_that_bind_nothing_needed_are_still_skipped(tmp_path):
     ],
 )
 def test_a_binding_is_sure_only_when_every_way_through_binds_it(statement, sure):
-    assert _surely_binds(ast.parse(statement).body) == sure
+    assert surely_binds(ast.parse(statement).body) == sure
 
 
 def test_the_notebook_module_is_main_and_is_put_back(tmp_path):
