@@ -244,10 +244,8 @@ def answers_exposed(root: Path) -> list[str]:
     """
     paths = [Path(root) / "solutions", Path(root) / "tests"]
     protection = describe_protection()
-    probed = (
-        []
-        if protection.answers_protected
-        else list(protection.problems or ["a sandboxed worker could read the answers"])
+    probed = [] if protection.answers_protected else list(
+        protection.problems or ["a sandboxed worker could read the answers"]
     )
     return probed + _readable_answer_files(paths)
 

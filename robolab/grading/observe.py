@@ -85,9 +85,8 @@ def arrays_in(
                 yield from arrays_in(item, (*path, ("k", key)), depth + 1, budget)
     elif dataclasses.is_dataclass(value) and not isinstance(value, type):
         for f in dataclasses.fields(value):
-            yield from arrays_in(
-                getattr(value, f.name, None), (*path, ("a", f.name)), depth + 1, budget
-            )
+            yield from arrays_in(getattr(value, f.name, None), (*path, ("a", f.name)), depth + 1,
+                                 budget)
 
 
 def _bounds(a: np.ndarray) -> tuple[int, int]:

@@ -437,7 +437,7 @@ class GradingCollector:
 
 
 def _label(record: dict) -> str:
-    return f'"{record["description"]}"'
+    return f"\"{record['description']}\""
 
 
 def settle(records: list[dict]) -> list[dict]:
