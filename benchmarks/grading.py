@@ -5,9 +5,9 @@ with -j 2 <= 45 s on a 2-core machine. Every case runs twice in the same session
 interleaved, best of the repeats:
 
 - cold: ``ROBOLAB_WARM_WORKERS=0``, every worker a fresh ``python -m
-  robolab.grading.worker`` that imports numpy and the notebook's libraries itself
+  robolab.grading.isolation.worker`` that imports numpy and the notebook's libraries itself
   (the grader before the warm zygote);
-- warm: workers forked by one zygote (:mod:`robolab.grading.zygote`) per grading
+- warm: workers forked by one zygote (:mod:`robolab.grading.isolation.zygote`) per grading
   session.
 
 "one submission (CLI)" is ``robolab grade one.ipynb --out NEW_FOLDER`` in a fresh process:
@@ -32,8 +32,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from robolab.grading import warm
-from robolab.grading.runner import grade_all, grade_submission
+from robolab.grading.isolation import warm
+from robolab.grading.running.runner import grade_all, grade_submission
 
 REPO = Path(__file__).resolve().parents[1]
 MODES = ("cold", "warm")

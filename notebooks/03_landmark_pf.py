@@ -78,7 +78,7 @@ plot_world_and_robots(world, robots);
 # \end{aligned}
 # $$
 #
-# Two remarks on a `move` function often given for this exercise (`cRobot.move` in MATLAB):
+# Two remarks on a `move` function often written for this exercise:
 #
 # * it draws **two** forward-noise samples, one for $x$ and one for $y$. Then the robot no longer moves along its
 #   heading (try it: with $\sigma_{turn} = 0$ its displacement still points in a random direction). That is a bug:
@@ -107,8 +107,8 @@ def move_particles(
         x_i' &= (x_i + d_i \\cos\\theta_i') \\bmod S, \\qquad
         y_i' = (y_i + d_i \\sin\\theta_i') \\bmod S
 
-    One forward-noise sample per particle moves it along its new heading (the
-    MATLAB ``move`` draws one for x and another for y, which is a bug). Headings are
+    One forward-noise sample per particle moves it along its new heading (a
+    version that draws one for x and another for y is a bug). Headings are
     wrapped to ``[-pi, pi)``, positions to ``[0, S)`` (the cyclic world).
 
     Parameters

@@ -47,7 +47,7 @@
 import numpy as np
 import matplotlib.pyplot as plt
 from scipy import ndimage
-from tqdm.auto import tqdm
+from robolab.progress import progress_bar
 
 from robolab import DATA_DIR
 from robolab.bag import BagReader, laser_pose_in_base
@@ -420,7 +420,7 @@ def build_counting_map(robot_poses, label, every=1):
     laser_poses = compose(robot_poses, laser_offset)
     hits, visits = np.zeros(empty.shape), np.zeros(empty.shape)
     snaps = {}
-    for i in tqdm(range(0, len(scans), every), desc=label, unit="scan"):
+    for i in progress_bar(range(0, len(scans), every), desc=label, unit="scan"):
         hits, visits = counting_map_update(hits, visits, scan_at(i), laser_poses[i], empty)
         for s in SNAPSHOTS:
             if s not in snaps and t[i] >= s:
@@ -588,8 +588,8 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
         The map's geometry.
     inverse_sensor_model_params : dict
         ``l_occ``, ``l_free``, ``l_0`` (log-odds), ``alpha`` (obstacle thickness,
-        metres, > 0), ``beta`` (beam width, radians, > 0); see
-        :data:`INVERSE_SENSOR_MODEL`.
+        metres, > 0), ``beta`` (beam width, radians, > 0); the notebook's
+        ``PARAMS`` below is an example.
 
     Returns
     -------
@@ -640,7 +640,7 @@ PARAMS = {"l_occ": np.log(0.7 / 0.3), "l_free": np.log(0.35 / 0.65), "l_0": 0.0,
 def build_logodds_map(robot_poses, label, every=4):
     laser_poses = compose(robot_poses, laser_offset)
     l = np.zeros(empty.shape)
-    for i in tqdm(range(0, len(scans), every), desc=label, unit="scan"):
+    for i in progress_bar(range(0, len(scans), every), desc=label, unit="scan"):
         l = logodds_update(l, scan_at(i), laser_poses[i], empty, PARAMS)
     return empty.with_data(logodds_to_probability(l))
 

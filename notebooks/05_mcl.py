@@ -207,7 +207,7 @@ ax.legend(loc="lower right");
 # $y' = y + \hat\delta_{trans}\sin(\theta + \hat\delta_{rot1})$,
 # $\theta' = \theta + \hat\delta_{rot1} + \hat\delta_{rot2}$.
 #
-# > **Careful with a common rewriting of Table 5.6.** Some handouts write the noise as
+# > **Careful with a common rewriting of Table 5.6.** Some write-ups of this model give the noise as
 # > $\varepsilon_{\alpha_1|\delta_{rot2}| + \alpha_2|\delta_{trans}|}$: a *standard deviation* linear in the
 # > motion (that is what AMCL's old `diff` model does), and with $\delta_{rot2}$ in the noise of
 # > $\delta_{rot1}$. Table 5.6 uses **variances** $\alpha_1\delta_{rot1}^2 + \alpha_2\delta_{trans}^2$, so that
@@ -249,7 +249,7 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
         \hat\delta_{rot2} &= \delta_{rot2} - \varepsilon(\alpha_1 \delta_{rot2}^2 + \alpha_2 \delta_{trans}^2)
 
     where :math:`\varepsilon(b^2)` is a zero-mean Gaussian of **variance**
-    :math:`b^2`. (Some handouts write the noise as
+    :math:`b^2`. (Some write-ups of this model give the noise as
     :math:`\varepsilon_{\alpha_1|\delta_{rot2}| + \alpha_2|\delta_{trans}|}`: without
     the squares, i.e. as a standard deviation -- which is what AMCL's plain
     ``ODOM_MODEL_DIFF`` does -- and with :math:`\delta_{rot2}` in the noise of
@@ -714,9 +714,9 @@ mcl_explorer(data, mcl_step, init_gaussian, field, PARAMS);
 
 
 # %% [markdown]
-# **The early jumps**: "The big position jumps at the beginning of the localization
-# can be explained by increasing confidence of the best hypothesis over the runtime. At the start, the best
-# hypothesis might simply be inaccurate which will be corrected over time." Here the reason is visible in the
+# **The early jumps**: a common explanation of the big position jumps at the beginning of global
+# localization is that the best hypothesis is inaccurate at first and gains confidence over time. Here the
+# reason is more specific, and visible in the
 # snapshots: the particles first gather in **several** places that explain the scans equally well (the four
 # offices are identical), and the best hypothesis hops between those clusters until the robot sees something
 # that breaks the symmetry; then the estimate jumps one last time, to the right place, and stays there. The
@@ -970,7 +970,7 @@ else:
 
 # %% [markdown]
 # And **global** localization on the real robot: a uniform start over the whole 2 cm map, the smoother
-# `GLOBAL_PARAMS` of section 4, 5000 particles.
+# `GLOBAL_PARAMS` of section 3.5, 5000 particles.
 
 # %%
 try:

@@ -38,7 +38,7 @@
 # %%
 import numpy as np
 import matplotlib.pyplot as plt
-from tqdm.auto import tqdm
+from robolab.progress import progress_bar
 from filterpy.kalman import ExtendedKalmanFilter
 
 from robolab import DATA_DIR
@@ -203,7 +203,7 @@ ax = new_axes("Dead reckoning against ground truth", "x [units]", "y [units]")
 ax.plot(truth[:, 0], truth[:, 1], "k--", label="ground truth")
 ax.plot(dead[:, 0], dead[:, 1], color="tab:orange", label="dead reckoning")
 ax.legend()
-print(f"dead reckoning: final position error {err_dead[-1]:.2f} units")
+print(f"dead reckoning: final position error {err_dead[-1]:.2f}, mean {err_dead.mean():.2f} units")
 
 
 # %% [markdown]
@@ -551,7 +551,7 @@ def run_ekf(step, x0, P0, m0, n=None, R=np.eye(N_BEAMS), snapshots=(), desc="EKF
     # Run `step(ekf, map, v, w, z, dt)` over the data; return states, covariances, final map and snapshots.
     x, P, m = np.array(x0, float), np.array(P0, float), np.array(m0, float)
     states, covs, snaps = np.empty((n, 3)), np.empty((n, 3, 3)), {}
-    for k in tqdm(range(n), desc=desc, leave=False):
+    for k in progress_bar(range(n), desc=desc, leave=False):
         x, P, m = step((x, P, data["process_noise"], R), m, speed[k], rotation_speed[k], scans[k], dt)
         states[k], covs[k] = x, P
         if round((k + 1) * dt, 6) in snapshots:
@@ -578,8 +578,16 @@ plot_ekf_path(est, covs, truth[1:], ax, every=25, evidence=ekf_map,
               title="EKF with mapping: estimate, 2-sigma ellipses and ground truth");
 
 # %% [markdown]
+# Compare the two printed errors: on this run the EKF with mapping ends up **worse than dead reckoning**
+# (its mean error is about twice dead reckoning's final error). Nothing in the code is wrong. The filter
+# corrects the pose against a map drawn from its own earlier, already erroneous poses, and it treats that
+# map as exact: a map error becomes a pose error, which the next scans write into the map again. Dead
+# reckoning has no such feedback; on this short, well-calibrated run its drift stays small.
+#
 # The ellipses are tiny — far smaller than the actual error. The filter treats the map as exact, but the map
 # was built from its own (erroneous) estimates and is only known to a cell: the EKF is **overconfident**.
+# Keeping the map's uncertainty and its correlation with the pose in the state is what SLAM does
+# (EKF-SLAM, Probabilistic Robotics chapter 10).
 # To see how much of the error comes from the map, run the same step with the **true** map, given as
 # evidence so strong (±100) that a scan cannot change it: EKF localization on a known map.
 
@@ -631,8 +639,10 @@ print(f"mean position error: map then correct {err_ekf.mean():.2f}, correct then
 # push the pose anywhere. After the first step, the other order corrects against the map of the previous
 # scan, which lags the robot by one step (0.1 s, at most 0.2 units) — less than a cell: the map's
 # resolution is too coarse for that lag to matter.
-# On this run the two orders end up equally good (within the cell-sized wander of both): what matters is
-# that the correction never uses a map that does not yet contain the obstacles the scan sees.
+# On this run correct-then-map ends up somewhat better (compare the printed means): both wander by less
+# than a cell, and which order wins changes from run to run, because neither removes the feedback between
+# map errors and pose errors described in section 5. What matters is that the correction never uses a map
+# that does not yet contain the obstacles the scan sees.
 
 # %% [markdown]
 # ## 7. EKF against a particle filter (AMCL)
@@ -653,7 +663,7 @@ def particle_filter(particles, grid, rng, n=None, every=5, sigma_z=1.0, motion_s
     p = np.array(particles, float)
     N = len(p)
     means, clouds = np.empty((n, 3)), {}
-    for k in tqdm(range(n), desc=desc, leave=False):
+    for k in progress_bar(range(n), desc=desc, leave=False):
         v = speed[k] + motion_std[0] * rng.standard_normal(N)
         w = rotation_speed[k] + motion_std[1] * rng.standard_normal(N)
         p = np.column_stack([p[:, 0] + v * np.cos(p[:, 2]) * dt, p[:, 1] + v * np.sin(p[:, 2]) * dt,

@@ -48,7 +48,7 @@ from robolab.checks import fastslam as checks
 # %% [markdown]
 # ## 1. The fiducial robot
 #
-# `FiducialRobot` plays the role of a simulated robot (a `Robot.m` in MATLAB versions of this lab). Drive it with
+# `FiducialRobot` plays the role of a simulated robot (`robolab.fiducials.FiducialRobot`). Drive it with
 #
 # ```python
 # while robot.run():          # advance one step; False when the run is over
@@ -277,8 +277,8 @@ def h_jacobian(landmark, pose):
         H = \begin{pmatrix} \delta_x / \sqrt q & \delta_y / \sqrt q \\
                             -\delta_y / q & \delta_x / q \end{pmatrix}
 
-    :math:`q` is floored at :data:`MIN_SQ_RANGE` so that a landmark estimate
-    on top of the robot gives a large but finite Jacobian.
+    :math:`q` is floored at a tiny positive value (say :math:`10^{-12}`) so
+    that a landmark estimate on top of the robot gives a large but finite Jacobian.
 
     Parameters
     ----------
@@ -320,7 +320,7 @@ print("largest difference:", np.abs(h_jacobian(landmark, pose) - numeric).max())
 # \mu' = \mu + K e, \qquad \Sigma' = (I - K H)\,\Sigma, \qquad w = |2\pi Q|^{-1/2} \exp\!\big(-\tfrac12\, e^T Q^{-1} e\big).
 # $$
 #
-# **Two typos that circulate in handouts of this lab.** One version defines $e = \hat z - z$ and then adds $K e$ — that moves the landmark *away* from the measurement; the innovation is $e = z - \hat z$. And it prints the weight as $|2\pi Q|^{+1/2}\exp(-\frac12 e^T Q e)$; the Gaussian density has the determinant to the power $-\frac12$ and the **inverse** $Q^{-1}$ in the exponent. With that version, particles that predict the measurement badly are not penalized, and the filter degrades to dead reckoning.
+# **Two typos that circulate in write-ups of this algorithm.** One version defines $e = \hat z - z$ and then adds $K e$ — that moves the landmark *away* from the measurement; the innovation is $e = z - \hat z$. And it prints the weight as $|2\pi Q|^{+1/2}\exp(-\frac12 e^T Q e)$; the Gaussian density has the determinant to the power $-\frac12$ and the **inverse** $Q^{-1}$ in the exponent. With that version, particles that predict the measurement badly are not penalized, and the filter degrades to dead reckoning.
 #
 # **The bearing wrap.** A bearing measured as $3.1$ rad and predicted as $-3.1$ rad differ by $0.08$ rad, not $6.2$: wrap the second component of $e$ to $[-\pi, \pi)$ with `wrap_angle`.
 #
@@ -339,7 +339,7 @@ def update_landmark(mean, cov, z, pose, Qt):
         \ln w &= -\tfrac12 \ln|2\pi Q| - \tfrac12 e^T Q^{-1} e
 
     so :math:`w = |2\pi Q|^{-1/2}\exp(-\frac12 e^T Q^{-1} e)`, the Gaussian
-    density of the innovation. Some handouts print
+    density of the innovation. Some write-ups print
     :math:`|2\pi Q|^{+1/2}\exp(-\frac12 e^T Q e)` and :math:`e = \hat z - z`:
     both are typos. Without the wrap, a bearing measured as 3.1 rad and predicted
     as -3.1 rad (0.08 rad apart) would look 6.2 rad apart.
@@ -722,6 +722,6 @@ print("median landmark RMSE [m] per M:", dict(zip(n_particles.tolist(), np.round
 #
 #    *Your answer here.*
 #
-# 4. Summarize the method with its equations (an overview), and state the two corrections to the handout formulas of section 4.
+# 4. Summarize the method with its equations (an overview), and state the two typos of section 5 (the innovation's sign and the weight's formula) with their corrections.
 #
 #    *Your answer here.*

@@ -56,7 +56,7 @@ _percent = _number(float, lambda v: 0 <= v <= 100, "a percentage", "between 0 an
 
 
 def _visibility(text: str) -> tuple[str, str]:
-    from robolab.grading.gradescope import VISIBILITIES
+    from robolab.grading.exports.gradescope import VISIBILITIES
 
     exercise, sep, value = text.partition("=")
     if not sep or value not in VISIBILITIES or not exercise:
@@ -210,10 +210,10 @@ def main(argv: list[str] | None = None) -> int:
         # Before anything else: the zygotes' imports (half a second) run while the
         # arguments are parsed and the batch is read. A command that ends before they
         # are ready (a usage error, --help) kills them at exit instead of waiting.
-        from robolab.grading import warm
+        from robolab.grading.isolation import warm
 
         warm.shared()  # the worker zygote first: its imports are the longest
-        from robolab.grading.runner import start_zygotes
+        from robolab.grading.running.runner import start_zygotes
 
         start_zygotes()
     args = _build_parser().parse_args(argv)

@@ -108,8 +108,8 @@ class OccupancyGrid:
 
         Only meaningful when the origin's yaw is 0.
         """
-        x0, y0 = self.origin[:2]
-        return (x0, x0 + self.width, y0, y0 + self.height)
+        x0, y0 = (float(v) for v in self.origin[:2])  # plain floats: they print as numbers
+        return (x0, x0 + float(self.width), y0, y0 + float(self.height))
 
     @property
     def occupied(self) -> np.ndarray:

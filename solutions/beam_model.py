@@ -439,11 +439,13 @@ def beam_range_finder_model(z, z_star, params, log=False):
 
         q = \prod_{k=1}^{K} p^k, \qquad \log q = \sum_{k=1}^{K} \log p^k.
 
-    The product underflows to 0.0 for a few hundred beams (each :math:`p^k` is
-    typically well below 1, and doubles end near :math:`10^{-308}`);
-    ``log=True`` returns :math:`\log q` as a sum of per-beam logs, so it stays
-    finite and exact for any number of beams. A beam whose mixture itself is
-    near underflow (below ``LOG_SPACE_BELOW``: possible only with
+    Each :math:`p^k` is a density (per metre): above 1 near a good match
+    (up to :math:`z_{hit} / (\sigma_{hit}\sqrt{2\pi})`), far below 1 a few
+    :math:`\sigma_{hit}` off. The product of a few hundred of them leaves the
+    range of doubles (:math:`10^{-308}` to :math:`10^{308}`) and becomes 0.0 or
+    inf; ``log=True`` returns :math:`\log q` as a sum of per-beam logs, so it
+    stays finite and exact for any number of beams. A beam whose mixture itself
+    is near underflow (below about :math:`10^{-280}`: possible only with
     :math:`z_{rand} = 0`, a reading far out in the Gaussian's tail) is
     recomputed with log-sum-exp from the log of each component, so even its
     log is exact rather than ``-inf``.
@@ -530,7 +532,7 @@ def pose_likelihood_map(scan, grid, beam_angles, params, positions, headings):
     from position :math:`p` in absolute direction :math:`\phi` does not depend
     on which heading and beam produced :math:`\phi`, so each distinct direction
     :math:`\operatorname{wrap}(\theta_h + \alpha_k)` (to within 1e-9 rad) is cast
-    once per position: with headings on the beams' angular lattice (e.g. 61
+    once per position: with headings on the beams' angular lattice (e.g. 60
     beams over 360 degrees and headings in multiples of 6 degrees) that is
     ``B`` rays per position instead of ``H * B``.
 

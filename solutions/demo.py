@@ -55,7 +55,7 @@ def wrap(angle):
     """Wrap an angle (or an array of angles) to ``[-pi, pi)``; ``wrap(pi) == -pi``.
 
     Written out rather than calling :func:`robolab.geometry.wrap_angle`, which the
-    grader disables while ``wrap`` is graded (``robolab.grading.delegation``).
+    grader disables while ``wrap`` is graded (``robolab.grading.loading.delegation``).
     """
     a = np.asarray(angle, dtype=float)
     # Subtract the whole turns that take a into [-pi, pi): k = floor((a + pi) / 2 pi).

@@ -4,4 +4,4 @@ import os
 # grading run (one pytest process per submission) a quarter of a second.
 os.environ["MPLBACKEND"] = "Agg"
 
-pytest_plugins = ["robolab.grading.pytest_plugin"]
+pytest_plugins = ["robolab.grading.running.pytest_plugin"]

@@ -100,7 +100,7 @@ def _collect(root, paths, report) -> subprocess.CompletedProcess:
             "--collect-only",
             "-q",
             "-p",
-            "robolab.grading.pytest_plugin",
+            "robolab.grading.running.pytest_plugin",
             "-p",
             "no:cacheprovider",
             "--grading-report",
@@ -168,9 +168,9 @@ def test_points_total_100_and_every_exercise_is_graded(lab, tmp_path, collected_
 def stub_results() -> dict:
     """Every lab's stub notebook graded by its hidden tests, two at a time."""
     pytest.importorskip(
-        "robolab.grading.proxy", reason="the isolation layer (robolab.grading.proxy) has not landed"
+        "robolab.grading.running.proxy", reason="the isolation layer (running.proxy) has not landed"
     )
-    from robolab.grading.runner import grade_submission
+    from robolab.grading.running.runner import grade_submission
 
     graded = [lab for lab in WITH_NOTEBOOK if lab.hidden_tests.is_file()]
     with ThreadPoolExecutor(max_workers=2) as pool:
@@ -198,7 +198,7 @@ CHECKED = [lab for lab in WITH_NOTEBOOK if lab.name != "demo"]
 def test_robolab_check_passes_solved_and_fails_stub(lab, tmp_path):
     # The student's command: on the solved notebook every visible check passes; on
     # the stub it says what is missing and exits non-zero, never claiming success.
-    from robolab.grading.solve import solve_paths
+    from robolab.grading.exports.solve import solve_paths
 
     (solved,) = solve_paths([lab.notebook], tmp_path)
 

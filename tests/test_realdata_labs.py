@@ -35,9 +35,14 @@ def freiburg():
 @pytest.mark.parametrize("seed", [0, 1])
 def test_fastslam_on_freiburg_maps_the_landmarks_with_and_without_ess(freiburg, seed):
     from robolab.realdata.fastslam import run_fastslam_freiburg
+    from solutions.fastslam import fastslam_step, init_particles
 
-    every = run_fastslam_freiburg(freiburg, 100, np.random.default_rng(seed), ess_threshold=None)
-    ess = run_fastslam_freiburg(freiburg, 100, np.random.default_rng(seed), ess_threshold=0.5)
+    lab = {"fastslam_step": fastslam_step, "init_particles": init_particles}
+    def run(ess_threshold):
+        rng = np.random.default_rng(seed)
+        return run_fastslam_freiburg(freiburg, 100, rng, ess_threshold=ess_threshold, **lab)
+
+    every, ess = run(None), run(0.5)
     assert every["rmse_aligned"] < 0.05 and ess["rmse_aligned"] < 0.05
     assert every["rmse"] < 0.2 and ess["rmse"] < 0.2  # the start at the origin fixes the frame
     # the book resamples after every step with an observation; ESS only when depleted
@@ -50,15 +55,19 @@ def test_fastslam_on_freiburg_maps_the_landmarks_with_and_without_ess(freiburg, 
 def test_fastslam_ess_none_is_the_old_behaviour(freiburg):
     """ess_threshold=None is resample=True: the same run as a step that always resamples."""
     from robolab.realdata.fastslam import run_fastslam_freiburg
-    from solutions.fastslam import fastslam_step
+    from solutions.fastslam import fastslam_step, init_particles
 
     def old_step(state, command, observations, Q, Qt, rng, dt=1.0, resample=True):
         assert resample is True
         return fastslam_step(state, command, observations, Q, Qt, rng, dt)
 
-    a = run_fastslam_freiburg(freiburg, 30, np.random.default_rng(4), ess_threshold=None)
+    a = run_fastslam_freiburg(
+        freiburg, 30, np.random.default_rng(4), ess_threshold=None,
+        fastslam_step=fastslam_step, init_particles=init_particles,
+    )
     b = run_fastslam_freiburg(
-        freiburg, 30, np.random.default_rng(4), ess_threshold=None, fastslam_step=old_step
+        freiburg, 30, np.random.default_rng(4), ess_threshold=None,
+        fastslam_step=old_step, init_particles=init_particles,
     )
     np.testing.assert_array_equal(a["landmarks"], b["landmarks"])
 

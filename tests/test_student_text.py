@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from robolab.grading.release import build_release
+from robolab.grading.exports.release import build_release
 
 ROOT = Path(__file__).resolve().parents[1]
 WORD = re.compile(r"\bseed(?:s|'s)?\b", re.IGNORECASE)

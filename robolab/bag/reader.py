@@ -143,9 +143,10 @@ class BagReader:
         with self._wrap(f"cannot read {desc}"):
             stream = reader.messages(connections=connections)
             if self.progress:
-                from tqdm.auto import tqdm
+                from robolab.progress import progress_bar
 
-                stream = tqdm(stream, total=total, desc=f"{self.path.name}: {desc}", unit="msg")
+                label = f"{self.path.name}: {desc}"
+                stream = progress_bar(stream, total=total, desc=label, unit="msg")
             for conn, timestamp, raw in stream:
                 yield conn, timestamp, reader.deserialize(raw, conn.msgtype)
 

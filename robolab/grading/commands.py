@@ -1,9 +1,9 @@
 """The grading sub-commands of ``robolab``: grade, check, solve, release, gradescope.
 
 Each returns the process exit code and prints what the user needs; the work is
-in :mod:`~robolab.grading.runner`, :mod:`~robolab.grading.report`,
-:mod:`~robolab.grading.solve`, :mod:`~robolab.grading.release` and
-:mod:`~robolab.grading.gradescope`.
+in :mod:`~robolab.grading.running.runner`, :mod:`~robolab.grading.course.report`,
+:mod:`~robolab.grading.exports.solve`, :mod:`~robolab.grading.exports.release` and
+:mod:`~robolab.grading.exports.gradescope`.
 """
 
 from __future__ import annotations
@@ -41,9 +41,9 @@ def _course_inputs(
     exports: Sequence[str],
 ):
     """Read every course file before grading, so a typo costs nothing."""
-    from robolab.grading.late import LatePolicy, parse_time, read_times
-    from robolab.grading.overrides import read_overrides
-    from robolab.grading.roster import read_roster
+    from robolab.grading.course.late import LatePolicy, parse_time, read_times
+    from robolab.grading.course.overrides import read_overrides
+    from robolab.grading.course.roster import read_roster
 
     if exports and roster is None:
         raise ValueError(f"--export {exports[0]} needs --roster (who the students are)")
@@ -84,7 +84,12 @@ def grade(
     130 when interrupted (what finished is saved; the same command resumes).
     """
     from robolab.grading.labs import project_root
-    from robolab.grading.runner import DEFAULT_TIMEOUT, BatchInterrupted, grade_all, start_zygotes
+    from robolab.grading.running.runner import (
+        DEFAULT_TIMEOUT,
+        BatchInterrupted,
+        grade_all,
+        start_zygotes,
+    )
 
     timeout = DEFAULT_TIMEOUT if timeout is None else timeout
     if importlib.util.find_spec("pytest") is None:
@@ -100,8 +105,8 @@ def grade(
         return _error(f"no such notebook: {_shown(missing[0])}")
     root = project_root()
     start_zygotes(root)  # first: their imports run while the batch is read and planned
-    from robolab.grading.batch import BatchState, prepare_out
-    from robolab.grading.course import Course
+    from robolab.grading.course.batch import BatchState, prepare_out
+    from robolab.grading.course.outputs import Course
 
     try:
         if lab is not None:
@@ -174,7 +179,7 @@ def grade(
 
 
 def _shown(path) -> str:
-    from robolab.grading.batch import display_path
+    from robolab.grading.course.batch import display_path
 
     return display_path(path)
 
@@ -205,7 +210,7 @@ def check(notebook: Path) -> int:
     every visible check passed, 1 when one failed, 2 when the notebook cannot
     be checked.
     """
-    from robolab.grading.notebook import load_notebook
+    from robolab.grading.loading.notebook import load_notebook
 
     try:
         loaded = load_notebook(Path(notebook))
@@ -238,8 +243,8 @@ def check(notebook: Path) -> int:
     # `__main__`, in a scratch folder of their own (here a temporary one).
     import tempfile
 
-    from robolab.grading.kernel import Notebook, load_budget
-    from robolab.grading.proxy import Limits
+    from robolab.grading.loading.kernel import Notebook, load_budget
+    from robolab.grading.running.proxy import Limits
 
     budget = load_budget(Limits().wall_seconds, Limits().cpu_seconds)
     with (
@@ -320,8 +325,8 @@ def _is_stub_notebook(path: Path) -> bool:
 
     import nbformat
 
+    from robolab.grading.exports.release import is_stub
     from robolab.grading.labs import exercise_cells
-    from robolab.grading.release import is_stub
 
     try:
         nb = nbformat.read(str(path), as_version=4)
@@ -347,9 +352,9 @@ def solve(notebooks: Sequence[Path], *, out: Path) -> int:
         return _error(str(exc))
     import nbformat
 
-    from robolab.grading.batch import atomic_write
+    from robolab.grading.course.batch import atomic_write
+    from robolab.grading.exports.solve import SolveError, _notebooks, solve_notebook, solve_paths
     from robolab.grading.labs import Lab, lab_of_notebook, project_root
-    from robolab.grading.solve import SolveError, _notebooks, solve_notebook, solve_paths
 
     try:
         inputs = _notebooks([Path(p) for p in notebooks])
@@ -386,7 +391,7 @@ def release(out: Path, *, wheel: bool = True) -> int:
         _output_folder(out, "release folder")
     except ValueError as exc:
         return _error(str(exc))
-    from robolab.grading.release import ReleaseError, build_release
+    from robolab.grading.exports.release import ReleaseError, build_release
 
     try:
         build_release(out, wheel=wheel)
@@ -408,7 +413,7 @@ def gradescope(
     late_cap: float = 100.0,
 ) -> int:
     """Build the Gradescope autograder zip for ``lab``."""
-    from robolab.grading.gradescope import BundleOptions, build_bundle
+    from robolab.grading.exports.gradescope import BundleOptions, build_bundle
 
     try:
         _output_file(out, "-o")

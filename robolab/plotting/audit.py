@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import os
 import re
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -292,6 +293,7 @@ class _Auditor:
         self.shell = shell
         self.seen: set[int] = set()
         self.problems: list[str] = []
+        self.printed: list[str] = []  # numpy reprs in printed text (_PrintedReprs)
         self.cell = 0
         folder = os.environ.get("ROBOLAB_AUDIT_SAVE")
         self.save_to = Path(folder) if folder else None
@@ -318,6 +320,31 @@ class _Auditor:
             plt.close(fig)
 
 
+class _PrintedReprs:
+    """A stream wrapper that notes numpy scalar reprs (``np.float64(0.5)``) in printed text.
+
+    ``print(f"{x}")`` of a numpy scalar is fine; a tuple or list of them, or ``{x!r}``,
+    prints ``np.float64(...)`` since numpy 2: noise a student should not have to read.
+    """
+
+    PATTERN = re.compile(r"\bnp\.(?:float|int|uint|bool|complex|str_|bytes_)\w*\(")
+
+    def __init__(self, stream: Any, auditor: _Auditor) -> None:
+        self._stream, self._auditor = stream, auditor
+
+    def write(self, text: str) -> int:
+        if isinstance(text, str) and (match := self.PATTERN.search(text)):
+            shown = text[max(0, match.start() - 20) : match.end() + 20].strip()
+            self._auditor.printed.append(
+                f"cell {self._auditor.cell + 1}: prints a numpy repr ({shown!r}): "
+                "convert to float/int or format it"
+            )
+        return self._stream.write(text)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._stream, name)
+
+
 _AUDITOR: _Auditor | None = None
 
 
@@ -326,16 +353,19 @@ def load_ipython_extension(shell: Any) -> None:
     global _AUDITOR
     _AUDITOR = _Auditor(shell)
     shell.events.register("post_run_cell", _AUDITOR.post_run_cell)
+    if not isinstance(sys.stdout, _PrintedReprs):
+        sys.stdout = _PrintedReprs(sys.stdout, _AUDITOR)
 
 
 def report() -> None:
     """Raise AssertionError listing every problem the extension found (call in the last cell)."""
     if _AUDITOR is None:
         raise RuntimeError("load the extension first: %load_ext robolab.plotting.audit")
-    if _AUDITOR.problems:
+    problems = _AUDITOR.problems + _AUDITOR.printed
+    if problems:
         raise AssertionError(
-            f"{len(_AUDITOR.problems)} figure problem(s) (see docs/figures.md):\n  "
-            + "\n  ".join(_AUDITOR.problems)
+            f"{len(problems)} figure or output problem(s) (see docs/figures.md):\n  "
+            + "\n  ".join(problems)
         )
     import resource
 

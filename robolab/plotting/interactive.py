@@ -6,9 +6,11 @@ likelihood map (lab 02), the particle filter's noise levels and particle count
 (lab 03), MCL's particle count and motion-noise alphas (lab 05).
 
 :func:`interact_or_static` is the one place that decides: in a running IPython kernel
-with ipywidgets importable it shows ``ipywidgets.interact`` controls (which draw once at
-the defaults, so an executed notebook still holds the figure); elsewhere (a script, a
-viewer without widgets) it draws the figure once at the defaults.
+with ipywidgets importable it shows the sliders and, below them, the figure at the
+sliders' initial values as an ordinary image output, which each move of a slider
+replaces (through a display handle). A widget's state is not saved with a notebook, so
+this way a notebook run headless (nbconvert, nbval, CI) or opened in a viewer still
+shows the figure. Elsewhere (a script, no ipywidgets) it draws the figure once.
 """
 
 from __future__ import annotations
@@ -18,8 +20,10 @@ from dataclasses import dataclass
 
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from robolab.plotting.core import legend_outside, plot_map
+from robolab.progress import in_kernel
 
 __all__ = [
     "Slider",
@@ -59,28 +63,45 @@ class Slider:
 
 def widgets_available() -> bool:
     """True inside an IPython kernel with ipywidgets importable."""
-    try:
-        import ipywidgets  # noqa: F401
-        from IPython import get_ipython
-    except ImportError:
-        return False
-    shell = get_ipython()
-    return shell is not None and getattr(shell, "kernel", None) is not None
+    return in_kernel()
 
 
-def interact_or_static(draw: Callable[..., object], **sliders: Slider):
-    """Sliders that redraw ``draw(**values)``, or one static drawing at the defaults.
+def interact_or_static(draw: Callable[..., Figure], **sliders: Slider):
+    """Sliders that redraw ``draw(**values)``, above the figure at their initial values.
+
+    ``draw`` returns the Figure it made. Without a kernel and ipywidgets the figure is
+    drawn once at the defaults (``plt.show()``).
 
     Returns
     -------
-    The ``ipywidgets`` interactive object, or None for the static figure.
+    The ``ipywidgets`` box of sliders (already displayed), or None for the static figure.
     """
-    if widgets_available():
-        import ipywidgets as w
+    defaults = {name: (int(s.value) if s.integer else s.value) for name, s in sliders.items()}
+    if not widgets_available():
+        draw(**defaults)
+        plt.show()
+        return None
+    import ipywidgets as w
+    from IPython.display import display
 
-        return w.interact(draw, **{name: s.widget() for name, s in sliders.items()})
-    draw(**{name: (int(s.value) if s.integer else s.value) for name, s in sliders.items()})
-    return None
+    controls = {name: s.widget() for name, s in sliders.items()}
+    box = w.VBox(list(controls.values()))
+    display(box)
+
+    def render(values: dict):
+        fig = draw(**values)
+        plt.close(fig)  # shown through the handle only, not again at the end of the cell
+        return fig
+
+    handle = display(render(defaults), display_id=True)
+
+    def redraw(_change) -> None:
+        handle.update(render({name: c.value for name, c in controls.items()}))
+
+    for control in controls.values():
+        control.observe(redraw, names="value")
+    box.redraw = redraw  # for tests and for a caller that changes several values at once
+    return box
 
 
 def beam_model_explorer(
@@ -136,7 +157,7 @@ def beam_model_explorer(
             legend_outside(a2, loc="lower left", bbox_to_anchor=(0.0, 1.08))
         a2.set(xlabel="x [m]", ylabel="y [m]")
         fig.tight_layout()
-        plt.show()
+        return fig
 
     return interact_or_static(
         draw,
@@ -173,7 +194,7 @@ def landmark_pf_explorer(particle_filter: Callable, world, controls, measurement
         a2.set(title=f"Position error (mean {err.mean():.2f} m)", xlabel="step",
                ylabel="position error [m]")
         fig.tight_layout()
-        plt.show()
+        return fig
 
     return interact_or_static(
         draw,
@@ -206,7 +227,7 @@ def mcl_explorer(data, mcl_step: Callable, init_gaussian: Callable, field, param
                xlabel="time [s]", ylabel="position error [m]", yscale="log")
         legend_outside(ax)
         fig.tight_layout()
-        plt.show()
+        return fig
 
     return interact_or_static(
         draw,

@@ -32,13 +32,13 @@ def run_fastslam_freiburg(
     n_particles: int,
     rng: np.random.Generator,
     *,
-    fastslam_step: Callable | None = None,
-    init_particles: Callable | None = None,
+    fastslam_step: Callable,
+    init_particles: Callable,
     ess_threshold: float | None = 0.5,
     motion_noise=MOTION_NOISE,
     Qt=MEASUREMENT_NOISE,
 ) -> dict:
-    """Run FastSLAM over a Freiburg data set; the lab's functions may be passed in.
+    """Run the lab's FastSLAM functions over a Freiburg data set.
 
     Parameters
     ----------
@@ -46,9 +46,9 @@ def run_fastslam_freiburg(
         From :func:`robolab.datasets.read_freiburg`.
     n_particles : int
     rng : numpy.random.Generator
-    fastslam_step, init_particles : callable, optional
-        The lab's functions (signatures of :mod:`solutions.fastslam`); default the
-        reference solution's.
+    fastslam_step, init_particles : callable
+        The lab's functions, as the notebook defines them (the library never
+        imports the reference solutions: the student edition has none).
     ess_threshold : float or None
         Resample when the effective sample size falls below ``ess_threshold * M``
         (default 0.5), passed as ``fastslam_step``'s ``resample``; None resamples
@@ -65,11 +65,8 @@ def run_fastslam_freiburg(
         start at the origin) and ``rmse_aligned`` after SE(2) alignment, ``alignment``
         (3,), ``resamples`` (how many steps resampled), ``state`` the final particles.
     """
-    if fastslam_step is None or init_particles is None:
-        from solutions import fastslam as reference
-
-        fastslam_step = fastslam_step or reference.fastslam_step
-        init_particles = init_particles or reference.init_particles
+    if not (callable(fastslam_step) and callable(init_particles)):
+        raise TypeError("fastslam_step and init_particles must be the lab's functions (callables)")
     n = check_count("n_particles", n_particles)
     check_rng(rng)
     s_r1, s_t, s_r2 = (float(v) for v in motion_noise)

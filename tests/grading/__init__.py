@@ -6,7 +6,7 @@ import json
 import time
 from pathlib import Path
 
-from robolab.grading.proxy import Limits
+from robolab.grading.running.proxy import Limits
 
 #: Small limits so that hostile tests fail fast.
 TEST_LIMITS = Limits(
@@ -51,7 +51,7 @@ def wait_for_idle_import(notebook: Path, module: str, seconds: float = 60.0) -> 
     For the zygote's idle imports: they start once it has served a batch's first
     submissions and then sits idle. Raises AssertionError when they never come.
     """
-    from robolab.grading.proxy import open_submission
+    from robolab.grading.running.proxy import open_submission
 
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:

@@ -17,7 +17,7 @@ import pytest
 from robolab.cli import main
 
 pytest.importorskip(
-    "robolab.grading.proxy", reason="the isolation layer (robolab.grading.proxy) has not landed"
+    "robolab.grading.running.proxy", reason="the isolation layer (running.proxy) has not landed"
 )
 
 REPO = Path(__file__).resolve().parents[2]

@@ -26,8 +26,8 @@ from pathlib import Path
 
 import nbformat
 
+from robolab.grading.exports.solve import SolutionSource, solve_notebook
 from robolab.grading.labs import Lab, exercise_cells
-from robolab.grading.solve import SolutionSource, solve_notebook
 
 HERE = Path(__file__).resolve().parent
 

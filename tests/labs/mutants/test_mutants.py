@@ -1,6 +1,6 @@
 """The mutation suite: every plausible mistake loses points on its own exercise.
 
-Per lab, one batch is graded through the real grader (``robolab.grading.runner``,
+Per lab, one batch is graded through the real grader (``robolab.grading.running.runner``,
 two at a time): the solved notebook (must earn 100), the mutants packed into
 notebooks (see ``build.py``: each must lose points on its own exercise), and two
 "free points" notebooks, every exercise raising ValueError and every exercise
@@ -17,8 +17,8 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from robolab.grading.delegation import FORBIDDEN
 from robolab.grading.labs import discover_labs, find_lab
+from robolab.grading.loading.delegation import FORBIDDEN
 
 from . import build
 
@@ -93,7 +93,7 @@ APPLICABLE = {
 }
 #: Whether the worker observes argument changes and result aliasing (issue 14 item 5). Until
 #: it does, arguments cross as copies and an in-place mistake cannot lose points.
-OBSERVES_ARGUMENTS = importlib.util.find_spec("robolab.grading.observe") is not None
+OBSERVES_ARGUMENTS = importlib.util.find_spec("robolab.grading.wire.observe") is not None
 #: Labs whose hidden tests do not yet refuse free points (their owner gates them next).
 FREE_POINTS_PENDING: set[str] = set()
 
@@ -101,7 +101,7 @@ FREE_POINTS_PENDING: set[str] = set()
 @functools.lru_cache(maxsize=None)
 def graded(lab_name: str) -> dict:
     """Grade the lab's batch once: ``{"correct", "raises", "echo", "packs": [(group, result)]}``."""
-    from robolab.grading.runner import grade_all
+    from robolab.grading.running.runner import grade_all
 
     lab = find_lab(lab_name)
     base = build.solved(lab)
@@ -155,7 +155,7 @@ def test_the_catalogue_is_complete(lab):
     undelegated = sorted(e for e, names in FORBIDDEN.get(lab, {}).items() if names)
     undelegated = [e for e in undelegated if e not in delegated]
     assert not undelegated, (
-        f"lab {lab}: the library holds these exercises' answers (robolab/grading/delegation.py) "
+        f"lab {lab}: the library holds these exercises' answers (grading/loading/delegation.py) "
         f"but no delegating mutant shows that calling it loses the points: {undelegated}"
     )
 
@@ -165,7 +165,7 @@ def test_mutants_differ_from_the_solution(lab):
     """A mutant's function is not the reference solution's function, statement for statement."""
     import ast
 
-    from robolab.grading.solve import SolutionSource
+    from robolab.grading.exports.solve import SolutionSource
 
     source = SolutionSource.read(find_lab(lab).solution)
     for m in build.mutants_of(lab):

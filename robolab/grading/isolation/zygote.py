@@ -1,0 +1,402 @@
+"""The zygote: a clean process that imports the libraries once and forks workers (or pytest runs).
+
+Starting a worker cold costs an interpreter start, numpy, and then whatever the
+notebook imports (``matplotlib.pyplot``, ``robolab.plotting``, scipy): most of
+the time it takes to grade a small lab. The *zygote* pays that once. It is
+started exactly like a worker (``python -I -B -m robolab.grading.isolation.zygote``, a
+minimal environment, no current directory on ``sys.path``), imports
+:data:`PRELOAD`, and then, for each worker the grader asks for, forks a child
+that becomes the worker: it gets its own session, its pipes, working directory
+and environment, and runs :func:`robolab.grading.isolation.worker.main`, which isolates
+it (:func:`robolab.grading.isolation.sandbox.apply`: namespaces, view, uid, limits,
+Landlock) before any student code exists in it -- the same code path as a cold
+worker, so isolation is unchanged. Started with the role ``"grader"`` (by
+:func:`robolab.grading.isolation.warm.shared_grader`, in the project root, with the
+grader's environment) it imports pytest and numpy instead and forks one pytest
+run of the hidden tests per request: the trusted side, which may see the answers.
+The grader's handle on a zygote is :mod:`robolab.grading.isolation.warm`.
+
+A forked child inherits the zygote's memory, so the zygote must never hold
+anything a submission may not see: it never imports ``solutions`` or ``tests``
+(the meta-path hook of the worker refuses them in the zygote too), never reads
+the hidden tests, and keeps no state between forks. Each child is a fresh copy
+of the freshly started zygote: what one submission changes (monkeypatched numpy,
+globals, random state) is gone for the next. numpy's global random state is
+reseeded in every child.
+
+Protocol. The zygote listens on one ``SOCK_SEQPACKET`` socket (*control*), of
+which graders hold the other end (a socketpair: the runner passes it to its
+pytest processes by descriptor, never by a path another process could open).
+A request is one message: JSON ``{"plan", "env", "cwd"}`` with four descriptors
+attached (``SCM_RIGHTS``): a private stream socket back to the grader (*conn*),
+the worker's request pipe, its response pipe and its output pipe. On *conn*
+the zygote answers ``{"pid": N}`` (or ``{"error": text}``) and later
+``{"exit": code}`` (a :class:`subprocess.Popen`-style return code) once the
+worker is reaped. When *conn* closes first -- the grader died -- the zygote
+kills the worker's process group and uid. When every holder of the control
+socket is gone, the zygote kills every worker it started and exits.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import select
+import signal
+import socket
+import sys
+import threading
+import time
+
+__all__ = ["GRADER_PRELOAD", "GRADER_PRELOAD_IDLE", "PRELOAD", "PRELOAD_IDLE", "main"]
+
+#: Modules the zygote imports before it forks the first worker: what every lab's notebook uses.
+PRELOAD = (
+    "numpy",
+    "matplotlib",
+    "matplotlib.pyplot",
+    "fractions",
+    "robolab.grading.wire.codec",
+    "robolab.geometry",
+    "robolab.validation",
+    "robolab.maps",
+    "robolab.raycast",
+    "robolab.plotting",
+    "robolab.checks",
+)
+#: Modules some labs use, imported one at a time while the zygote has nothing to do once it
+#: has served :data:`IDLE_AFTER` requests: a single submission neither waits for them nor
+#: pays for them, a batch gets them warm.
+PRELOAD_IDLE = (
+    "scipy.special",
+    "scipy.ndimage",
+    "scipy.integrate",
+    "tqdm.auto",
+    "robolab.bag",
+    "robolab.world",
+    "robolab.fiducials",
+    "filterpy.kalman",
+)
+#: Requests served before the idle imports start (a batch, not one submission). A request
+#: marked ``"probe"`` (:mod:`~.isolation.protection`) does not count: while one submission
+#: is graded the idle imports would take a core from its pytest run and worker.
+IDLE_AFTER = 2
+#: What the grader zygote (the trusted side: pytest, the hidden tests) imports before forking.
+GRADER_PRELOAD = (
+    "numpy",
+    "pytest",
+    "_pytest.python",
+    "_pytest.fixtures",
+    "_pytest.assertion.rewrite",
+    "fractions",
+    "robolab.grading.running.proxy",
+)
+#: ... and while it is idle: what the hidden tests and reference solutions import.
+GRADER_PRELOAD_IDLE = (
+    "scipy.special",
+    "scipy.ndimage",
+    "scipy.integrate",
+    "scipy.stats",
+    "robolab.maps",
+    "robolab.raycast",
+    "robolab.bag",
+    "robolab.world",
+    "robolab.fiducials",
+    "filterpy.kalman",
+)
+#: Largest request (JSON) accepted by the zygote.
+MAX_REQUEST_BYTES = 1 << 20
+
+
+# --- the zygote process ------------------------------------------------------------------------
+
+
+def _preload(role: str) -> None:
+    if role == "worker":
+        from robolab.grading.isolation.worker import RefuseAnswers
+
+        sys.meta_path.insert(0, RefuseAnswers())  # the answers can never be in a child's memory
+        import matplotlib
+
+        matplotlib.use("Agg")
+    for name in PRELOAD if role == "worker" else GRADER_PRELOAD:
+        _import(name)
+    _freeze()
+
+
+def _freeze() -> None:
+    """Move every object so far out of the collector's reach (what ``gc.freeze`` is for).
+
+    A child's garbage collections then skip the preloaded modules' objects:
+    faster, and the child does not write to (and so copy) every page it shares
+    with the zygote.
+    """
+    import gc
+
+    gc.collect()
+    gc.freeze()
+
+
+def _import(name: str) -> None:
+    import importlib
+
+    try:
+        importlib.import_module(name)
+    except ImportError:
+        pass  # an optional library that is not installed: the worker reports it if used
+
+
+def _threads() -> int:
+    try:
+        return len(os.listdir("/proc/self/task"))
+    except OSError:
+        return threading.active_count()
+
+
+class _Server:
+    """The zygote's loop: fork a worker per request, report its exit, kill orphans."""
+
+    def __init__(self, control: socket.socket, role: str) -> None:
+        self.control = control
+        self.role = role
+        self.conns: dict[int, socket.socket] = {}  # worker pid -> its grader's connection
+        self.served = 0
+        self.wake_r, self.wake_w = os.pipe()
+        os.set_blocking(self.wake_w, False)
+        os.set_blocking(self.wake_r, False)
+        signal.signal(signal.SIGCHLD, lambda *_: None)
+        signal.set_wakeup_fd(self.wake_w)
+
+    def run(self) -> int:
+        poller = select.poll()
+        poller.register(self.control, select.POLLIN)
+        poller.register(self.wake_r, select.POLLIN)
+        by_fd: dict[int, int] = {}
+        idle = list(PRELOAD_IDLE if self.role == "worker" else GRADER_PRELOAD_IDLE)
+        while True:
+            warm_up = idle and self.served >= IDLE_AFTER
+            try:
+                events = poller.poll(0 if warm_up else 1000)
+            except InterruptedError:  # pragma: no cover - poll retries on EINTR since 3.5
+                continue
+            if not events and warm_up:
+                _import(idle.pop(0))
+                _freeze()
+                continue
+            for fd, _ in events:
+                if fd == self.wake_r:
+                    while True:
+                        try:
+                            if not os.read(self.wake_r, 4096):
+                                break
+                        except BlockingIOError:
+                            break
+                elif fd == self.control.fileno():
+                    if not self._accept(poller, by_fd):
+                        self._kill_all()
+                        return 0
+                else:  # a grader's connection: closed (or talking out of turn)
+                    pid = by_fd.pop(fd, None)
+                    poller.unregister(fd)
+                    if pid is not None:
+                        self._kill(pid)
+            for pid in self._reap():
+                conn = self.conns.pop(pid)
+                by_fd.pop(conn.fileno(), None)
+                try:
+                    poller.unregister(conn)
+                except KeyError:
+                    pass
+                conn.close()
+
+    def _accept(self, poller: select.poll, by_fd: dict[int, int]) -> bool:
+        """Fork a worker for one request; False when every grader has gone."""
+        try:
+            data, fds, _, _ = socket.recv_fds(self.control, MAX_REQUEST_BYTES, 8)
+        except (BlockingIOError, InterruptedError):
+            return True
+        if not data and not fds:
+            return False
+        if len(fds) != (4 if self.role == "worker" else 2):
+            for fd in fds:
+                os.close(fd)
+            return True
+        conn = socket.socket(fileno=fds[0])
+        pipes = fds[1:]
+        try:
+            request = json.loads(data)
+            if _threads() != 1:
+                raise RuntimeError(f"the zygote has {_threads()} threads; it only forks with one")
+            sys.stdout.flush()
+            sys.stderr.flush()
+            pid = os.fork()
+        except Exception as exc:  # noqa: BLE001 - reported to the grader, which starts it cold
+            _say(conn, {"error": f"{type(exc).__name__}: {exc}"})
+            conn.close()
+            for fd in pipes:
+                os.close(fd)
+            return True
+        if pid == 0:  # pragma: no cover - the child; covered by the worker tests
+            code = 70
+            try:
+                self._detach()
+                if self.role == "worker":
+                    code = self._become_worker(request, pipes)
+                else:
+                    code = self._become_grader(request, pipes[0])
+            except BaseException:  # noqa: BLE001 - the grader reports the exit status
+                import traceback
+
+                traceback.print_exc()
+            finally:
+                os._exit(code)
+        for fd in pipes:
+            os.close(fd)
+        if not request.get("probe"):  # the protection probe is not a submission of a batch
+            self.served += 1
+        self.conns[pid] = conn
+        by_fd[conn.fileno()] = pid
+        poller.register(conn, select.POLLIN | select.POLLHUP)
+        _say(conn, {"pid": pid})
+        return True
+
+    def _detach(self) -> None:  # pragma: no cover - in the forked child
+        signal.set_wakeup_fd(-1)
+        signal.signal(signal.SIGCHLD, signal.SIG_DFL)
+        os.setsid()  # its own session and process group, killed as a group
+
+    def _become_worker(self, request: dict, pipes: list[int]) -> int:  # pragma: no cover
+        """In the forked child: run the worker as if started cold (it isolates itself)."""
+        request_fd, response_fd, output_fd = pipes
+        _redirect(output_fd, keep={request_fd, response_fd})
+        os.chdir(request["cwd"])
+        os.environ.clear()
+        os.environ.update(request["env"])
+        import tempfile
+
+        tempfile.tempdir = None  # found again from TMPDIR, the worker's own directory
+        import numpy
+
+        numpy.random.seed()  # noqa: NPY002 - the legacy global state students use, not the zygote's
+        from robolab.grading.isolation import worker
+
+        config = {"request_fd": request_fd, "response_fd": response_fd, "plan": request["plan"]}
+        return worker.main(["robolab.grading.isolation.worker", json.dumps(config)])
+
+    def _become_grader(self, request: dict, log_fd: int) -> int:  # pragma: no cover
+        """In the forked child: ``python -m pytest ARGS`` in ``cwd``, output to the log.
+
+        A request ``{"task": "probe", "out": PATH, ...}`` instead probes what this
+        machine's workers are protected from (:func:`~.protection.probe_protection`,
+        with a worker of the worker zygote) and writes the result to ``PATH`` as JSON.
+        """
+        keep = {int(fd) for fd in request.get("keep", ())}
+        _redirect(log_fd, keep=keep)
+        os.chdir(request["cwd"])
+        os.environ.clear()
+        os.environ.update(request["env"])
+        sys.path[0] = request["cwd"]  # what `python -m pytest` run there would have
+        if request.get("task") == "probe":
+            from robolab.grading.isolation import protection
+
+            found = protection.probe_protection()
+            with open(request["out"], "w", encoding="utf-8") as f:
+                json.dump(found.to_dict(), f)
+            return 0
+        sys.argv = ["pytest", *request["args"]]
+        import pytest
+
+        code = int(pytest.main(request["args"]))
+        for stream in (sys.stdout, sys.stderr):
+            stream.flush()
+        return code
+
+    def _kill(self, pid: int) -> None:
+        """SIGKILL a child's process group and, for a worker of root, every process of its uid."""
+        try:
+            os.killpg(pid, signal.SIGKILL)
+        except (ProcessLookupError, PermissionError):
+            pass
+        if self.role == "worker" and os.geteuid() == 0:
+            from robolab.grading.isolation import sandbox
+            from robolab.grading.running.proxy import _kill_uid
+
+            _kill_uid(sandbox.worker_uid(pid))
+
+    def _reap(self) -> list[int]:
+        reaped = []
+        while True:
+            try:
+                pid, status = os.waitpid(-1, os.WNOHANG)
+            except ChildProcessError:
+                break
+            if pid == 0:
+                break
+            if pid in self.conns:
+                _say(self.conns[pid], {"exit": os.waitstatus_to_exitcode(status)})
+                reaped.append(pid)
+        return reaped
+
+    def _kill_all(self) -> None:
+        for pid in list(self.conns):
+            self._kill(pid)
+        deadline = time.monotonic() + 10
+        while self.conns and time.monotonic() < deadline:
+            for pid in self._reap():
+                self.conns.pop(pid).close()
+            time.sleep(0.01)
+
+
+def _redirect(output_fd: int, keep: set[int]) -> None:  # pragma: no cover - in the child
+    """stdin from /dev/null, stdout and stderr to ``output_fd``; close every other descriptor."""
+    devnull = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(devnull, 0)
+    os.dup2(output_fd, 1)
+    os.dup2(output_fd, 2)
+    keep = {0, 1, 2, *keep}
+    for name in os.listdir("/proc/self/fd"):
+        fd = int(name)
+        if fd not in keep:
+            try:
+                os.close(fd)
+            except OSError:
+                pass  # the listing's own descriptor, already gone
+
+
+def _say(conn: socket.socket, message: dict) -> None:
+    try:
+        conn.sendall(json.dumps(message).encode() + b"\n")
+    except OSError:
+        pass  # the grader has gone; its worker is killed when the connection is seen closed
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the zygote: preload, then fork a worker per request until every grader has gone."""
+    argv = sys.argv if argv is None else argv
+    config = json.loads(argv[1])
+    control = socket.socket(fileno=config["control_fd"])
+    os.set_inheritable(control.fileno(), False)
+    if config.get("ready_fd") is not None:
+        os.set_inheritable(config["ready_fd"], False)
+    role = config.get("role", "worker")
+    try:
+        _preload(role)
+    except Exception as exc:  # noqa: BLE001 - the grader starts workers cold instead
+        print(f"robolab zygote: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 3
+    ready = config.get("ready_fd")
+    if ready is not None:  # the grader may no longer just kill it: it may fork from now on
+        try:
+            os.write(ready, b"r")
+        finally:
+            os.close(ready)
+    code = _Server(control, role).run()
+    # Every child is reaped and nothing is kept: exit without tearing down numpy, matplotlib
+    # and pytest module by module (a tenth of a second the grader would wait for).
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

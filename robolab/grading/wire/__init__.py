@@ -1,0 +1,7 @@
+"""Plain data across the worker boundary: the bounded decoder and call observation.
+
+Owns: ``codec`` (decode a worker's message at a cost the grader bounds), ``unpickler``
+(its allow-list engine), ``observe`` (in-place changes and aliasing, replayed on the
+grader's arrays). May import: numpy and the standard library only; nothing else of the
+grader, so that both sides of the boundary can load it.
+"""

@@ -1,0 +1,422 @@
+"""Decode what a worker sends back, accepting plain data only, at a cost the grader bounds.
+
+Results cross from the (untrusted) worker to the grader as pickles, because
+pickle is fast for numpy arrays. Unpickling runs whatever callable the stream
+names, so the grader never uses :func:`pickle.loads` on worker output: it uses
+:func:`loads`, a restricted unpickler that
+
+* knows an allow-list of harmless constructors (numpy arrays from a buffer,
+  numpy scalars, dtypes of a fixed set of plain kinds, ``complex``, ``slice``,
+  ``range``, sets, ``bytearray``, ``Fraction`` and registered robolab
+  dataclasses), each wrapped so its arguments are checked *before* it runs;
+* executes only the opcodes a protocol-5 pickle of plain data uses, and never
+  calls ``__setstate__``: a numpy dtype's state must be exactly the state of
+  the plain dtype its constructor built (structured, subarray, object, void,
+  datetime and non-native dtypes are refused, so a field offset outside the
+  item can never be smuggled in);
+* decodes under a :class:`DecodeLimits` budget checked before anything is
+  allocated or hashed: message bytes, opcodes, buffer lengths, integer and
+  Fraction bit sizes, ``range`` lengths, string lengths, and the work of
+  hashing dict keys and set items (counted through shared references, with
+  few keys of one hash per container).
+
+After unpickling, the value is walked once more: allowed types only, nesting
+depth, no value containing itself, and its *expanded* size -- every element
+counted as often as it is referenced, so a list nested 8 deep of ``[a] * 10``
+counts 1e8 leaves although its message has 200 bytes -- within the budget.
+Every cost is thus linear in the message and bounded by the grader's own
+limits, so no memory or time limit is needed around the decode itself. The
+opcode engine is :mod:`robolab.grading.wire.unpickler`; this module holds what is
+allowed and the final walk.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import fractions
+import io
+import math
+import pickle
+import re
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from robolab.grading.wire.unpickler import (
+    LIMITS,
+    MAX_DEPTH,
+    CodecError,
+    DecodeLimits,
+    active,
+    check_int,
+    decode,
+    short,
+)
+
+__all__ = [
+    "LIMITS",
+    "MAX_DEPTH",
+    "CodecError",
+    "DecodeLimits",
+    "check_plain",
+    "dumps",
+    "loads",
+    "register_dataclass",
+    "registered_dataclasses",
+]
+
+#: Pickle protocol of the wire format; 5 stores numpy arrays as one flat buffer.
+PROTOCOL = 5
+
+_PLAIN_SCALARS = (type(None), bool, int, float, complex, fractions.Fraction, str, bytes, bytearray)
+_CONTAINERS = (list, tuple, set, frozenset)
+#: Numpy kinds a result may hold, as the dtype constructor's argument.
+_DTYPE_NAMES = frozenset("b1 i1 i2 i4 i8 u1 u2 u4 u8 f2 f4 f8 f16 c8 c16 c32".split())
+#: Strings and bytes arrays: "U12", "S4" (size in characters or bytes).
+_FLEXIBLE_DTYPE = re.compile(r"[US]([1-9][0-9]{0,3})")
+_MAX_DIMENSIONS = 32
+
+
+# --- constructors the stream may call, each checking its arguments first ------------------------
+
+
+def plain_dtype(dtype: Any) -> np.dtype:
+    """``dtype`` itself when it is a plain numeric, bool, string or bytes dtype; else CodecError."""
+    if not isinstance(dtype, np.dtype):
+        raise CodecError(f"expected a numpy dtype, got {type(dtype).__name__}")
+    if dtype.hasobject:
+        raise CodecError(f"numpy arrays of dtype {dtype} (holding Python objects) are not accepted")
+    if dtype.fields is not None or dtype.subdtype is not None:
+        raise CodecError(f"numpy arrays of structured dtype {dtype} are not accepted")
+    if dtype.kind not in "biufcUS" or not dtype.isnative:
+        raise CodecError(f"numpy arrays of dtype {dtype.str} are not accepted")
+    return dtype
+
+
+def _dtype(name: Any, align: Any = False, copy: Any = True) -> np.dtype:
+    if not (type(name) is str and (name in _DTYPE_NAMES or _FLEXIBLE_DTYPE.fullmatch(name))):
+        raise CodecError(f"numpy dtype {short(name)} is not accepted (plain numbers only)")
+    if align is not False or type(copy) is not bool:
+        raise CodecError("numpy dtypes with alignment options are not accepted")
+    return plain_dtype(np.dtype(name))
+
+
+def _frombuffer(buffer: Any, dtype: Any, shape: Any, order: Any) -> np.ndarray:
+    from numpy._core.numeric import _frombuffer as real
+
+    dtype = plain_dtype(dtype)
+    if type(buffer) not in (bytes, bytearray):
+        raise CodecError("a numpy array must be rebuilt from bytes")
+    if (
+        type(shape) is not tuple
+        or len(shape) > _MAX_DIMENSIONS
+        or not all(type(n) is int and 0 <= n and n.bit_length() < 63 for n in shape)
+    ):
+        raise CodecError(f"a numpy array of shape {short(shape)} is not accepted")
+    if math.prod(shape) * dtype.itemsize != len(buffer) or order not in ("C", "F"):
+        raise CodecError("a numpy array's shape does not match its data")
+    return real(buffer, dtype, shape, order)
+
+
+def _scalar(dtype: Any, *args: Any) -> np.generic:
+    from numpy._core.multiarray import scalar as real
+
+    dtype = plain_dtype(dtype)
+    if len(args) != 1 or type(args[0]) is not bytes or len(args[0]) != dtype.itemsize:
+        raise CodecError("a numpy scalar must be rebuilt from its bytes")
+    return real(dtype, *args)
+
+
+#: How Python <= 3.11 pickles a Fraction: its str(), "n" or "n/d" in decimal digits.
+_FRACTION_TEXT = re.compile(r"-?[0-9]{1,4300}(/[0-9]{1,4300})?")
+
+
+def _fraction(numerator: Any, denominator: Any = 1) -> fractions.Fraction:
+    # Python 3.12+ pickles Fraction(numerator, denominator), 3.10-3.11 Fraction("n/d").
+    # Accept exactly those two forms, so the constructor's float, Decimal and
+    # scientific-notation paths are never reached; bound the sizes before the gcd.
+    if type(numerator) is str and denominator == 1 and _FRACTION_TEXT.fullmatch(numerator):
+        return fractions.Fraction(numerator)
+    if type(numerator) is not int or type(denominator) is not int:
+        raise CodecError("a Fraction must be built from two ints or their 'n/d' text")
+    check_int(numerator, active().limits)
+    check_int(denominator, active().limits)
+    return fractions.Fraction(numerator, denominator)
+
+
+def _complex(real: Any = 0.0, imag: Any = 0.0) -> complex:
+    if type(real) not in (int, float) or type(imag) not in (int, float):
+        raise CodecError("a complex number must be built from two floats")
+    return complex(real, imag)
+
+
+def _slice(*args: Any) -> slice:
+    if len(args) > 3 or not all(a is None or type(a) is int for a in args):
+        raise CodecError("a slice must be built from ints or None")
+    for a in args:
+        if a is not None:
+            check_int(a, active().limits)
+    return slice(*args)
+
+
+def _range(*args: Any) -> range:
+    if not 1 <= len(args) <= 3 or not all(type(a) is int and a.bit_length() <= 63 for a in args):
+        raise CodecError("a range must be built from at most three 64-bit ints")
+    value = range(*args)
+    if len(value) > active().limits.max_elements:
+        raise CodecError(
+            f"a range of {len(value)} elements is too large "
+            f"(at most {active().limits.max_elements} are accepted)"
+        )
+    return value
+
+
+def _bytearray(data: Any = b"") -> bytearray:
+    if type(data) is not bytes:
+        raise CodecError("a bytearray must be built from bytes")
+    return bytearray(data)
+
+
+def _set(items: Any = ()) -> set:
+    return active().hashed(set(), items)
+
+
+def _frozenset(items: Any = ()) -> frozenset:
+    return frozenset(active().hashed(set(), items))
+
+
+# (module, name) -> constructor. Everything the stream can call is one of these.
+_ALLOWED: dict[tuple[str, str], Callable[..., Any]] = {
+    ("builtins", "complex"): _complex,
+    ("builtins", "slice"): _slice,
+    ("builtins", "range"): _range,
+    ("builtins", "set"): _set,
+    ("builtins", "frozenset"): _frozenset,
+    ("builtins", "bytearray"): _bytearray,
+    ("fractions", "Fraction"): _fraction,
+    ("numpy", "dtype"): _dtype,
+    ("numpy._core.numeric", "_frombuffer"): _frombuffer,
+    ("numpy.core.numeric", "_frombuffer"): _frombuffer,
+    ("numpy._core.multiarray", "scalar"): _scalar,
+    ("numpy.core.multiarray", "scalar"): _scalar,
+}
+
+_DATACLASSES: dict[tuple[str, str], type] = {}
+
+
+def register_dataclass(cls: type) -> type:
+    """Allow instances of a robolab dataclass to cross the process boundary.
+
+    Its fields must themselves be plain data; they are checked on decoding.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass defined in a ``robolab`` module.
+
+    Returns
+    -------
+    type
+        ``cls``, so this can be used as a decorator.
+
+    Raises
+    ------
+    TypeError
+        When ``cls`` is not a dataclass of the robolab package.
+    """
+    if not (isinstance(cls, type) and dataclasses.is_dataclass(cls)):
+        raise TypeError(f"only dataclasses can be registered, got {cls!r}")
+    if not cls.__module__.split(".")[0] == "robolab":
+        raise TypeError(
+            f"only robolab dataclasses can be registered, got {cls.__module__}.{cls.__qualname__}"
+        )
+    _DATACLASSES[(cls.__module__, cls.__qualname__)] = cls
+    return cls
+
+
+def registered_dataclasses() -> list[type]:
+    """The dataclasses accepted by :func:`loads` (after registering the defaults)."""
+    _register_defaults()
+    return list(_DATACLASSES.values())
+
+
+#: Modules whose dataclasses are accepted by default (registered on first use).
+_DEFAULT_MODULES = ("robolab.maps", "robolab.bag")
+_defaults_registered: set[str] = set()
+
+
+def _register_defaults(data: bytes | None = None) -> None:
+    """Register the default modules' dataclasses: all of them, or those ``data`` names."""
+    # Imported lazily: the bag module pulls in `rosbags`, and it may not exist yet.
+    import importlib
+
+    for module_name in _DEFAULT_MODULES:
+        if module_name in _defaults_registered or (
+            data is not None and module_name.encode() not in data
+        ):
+            continue
+        _defaults_registered.add(module_name)
+        try:
+            module = importlib.import_module(module_name)
+        except Exception:  # noqa: BLE001 - an optional module failing to import only narrows the list
+            continue
+        for value in vars(module).values():
+            if (
+                isinstance(value, type)
+                and dataclasses.is_dataclass(value)
+                and (value.__module__ + ".").startswith(module_name + ".")
+            ):
+                register_dataclass(value)
+
+
+def _registered(kind: type) -> bool:
+    return _DATACLASSES.get((kind.__module__, kind.__qualname__)) is kind
+
+
+# --- the unpickler -------------------------------------------------------------------------
+
+
+class _Pickler(pickle.Pickler):
+    def reducer_override(self, obj: Any) -> Any:
+        # numpy pickles a non-contiguous array through ndarray.__setstate__,
+        # which the decoder refuses; a contiguous copy goes through _frombuffer.
+        if type(obj) is np.ndarray and not (obj.flags.c_contiguous or obj.flags.f_contiguous):
+            return np.ascontiguousarray(obj).__reduce_ex__(PROTOCOL)
+        return NotImplemented
+
+
+def dumps(value: Any) -> bytes:
+    """Pickle ``value`` in the wire format (used by the worker for results)."""
+    buffer = io.BytesIO()
+    _Pickler(buffer, protocol=PROTOCOL).dump(value)
+    return buffer.getvalue()
+
+
+def loads(data: bytes, limits: DecodeLimits | None = None) -> Any:
+    """Unpickle worker output, accepting plain data only, within ``limits``.
+
+    Parameters
+    ----------
+    data : bytes
+        A pickle made by :func:`dumps` (or by anything pretending to be it).
+    limits : DecodeLimits, optional
+        What decoding may cost (default :data:`LIMITS`).
+
+    Returns
+    -------
+    object
+        Numbers, strings, bytes, None, lists, tuples, dicts, sets, numpy
+        arrays and scalars of plain dtypes and registered robolab
+        dataclasses, within the limits.
+
+    Raises
+    ------
+    CodecError
+        When the data names anything outside the allow-list, holds a dtype
+        that is not plain, exceeds a limit, contains itself, or is not a valid
+        pickle. The message is one line that can be shown to the student.
+    """
+    limits = limits or LIMITS
+    if len(data) > limits.max_bytes:
+        raise CodecError(
+            f"the result is too large ({len(data)} bytes; at most {limits.max_bytes} are accepted)"
+        )
+    # Only a pickle that names a class of robolab.maps or robolab.bag can need one of their
+    # dataclasses: each module is imported (robolab.maps imports scipy, robolab.bag rosbags:
+    # a quarter of a second) when the first result naming it arrives, not for every plain
+    # one. A module name cannot be spelt without its bytes (pickle has no string
+    # operations); one that is escaped is simply not found, and the result refused.
+    _register_defaults(data)
+    value = decode(data, limits, _ALLOWED, _DATACLASSES)
+    check_plain(value, limits)
+    return value
+
+
+def check_plain(value: Any, limits: DecodeLimits | None = None) -> None:
+    """Raise :class:`CodecError` unless ``value`` is plain data within ``limits``."""
+    limits = limits or LIMITS
+    total = _Walk(limits).weight(value, 0)
+    if total > limits.max_elements:
+        raise CodecError(
+            f"the result is too large: {total} elements counting repeated references "
+            f"(at most {limits.max_elements} are accepted)"
+        )
+
+
+class _Walk:
+    """One pass over a decoded value: types, depth, cycles, and expanded size (memoized)."""
+
+    def __init__(self, limits: DecodeLimits) -> None:
+        self.limits = limits
+        self.weights: dict[int, int] = {}
+        self.open: set[int] = set()
+
+    def weight(self, value: Any, depth: int) -> int:
+        if depth > self.limits.max_depth:
+            raise CodecError(
+                f"values nested deeper than {self.limits.max_depth} levels are not accepted"
+            )
+        kind = type(value)
+        if kind in _PLAIN_SCALARS:
+            return self._scalar(value)
+        if kind is np.ndarray or isinstance(value, np.generic):
+            plain_dtype(value.dtype)
+            return 1 + value.nbytes // 8
+        if kind is range:
+            return 1 + len(value)
+        key = id(value)
+        known = self.weights.get(key)
+        if known is not None:
+            return known
+        if key in self.open:
+            raise CodecError("a value that contains itself is not accepted")
+        self.open.add(key)
+        total = 1
+        for item in self._children(value, kind):
+            total += self.weight(item, depth + 1)
+            if total > self.limits.max_elements:
+                break  # already too large; the caller reports it
+        self.open.discard(key)
+        self.weights[key] = total
+        return total
+
+    def _scalar(self, value: Any) -> int:
+        kind = type(value)
+        if kind is int:
+            check_int(value, self.limits)
+            return 1 + value.bit_length() // 64
+        if kind is fractions.Fraction:
+            check_int(value.numerator, self.limits)
+            check_int(value.denominator, self.limits)
+            return 2
+        if kind is str and len(value) > self.limits.max_text:
+            raise CodecError(
+                f"a string of {len(value)} characters is too long "
+                f"(at most {self.limits.max_text} are accepted)"
+            )
+        if kind in (str, bytes, bytearray):
+            return 1 + len(value) // 8
+        return 1
+
+    @staticmethod
+    def _children(value: Any, kind: type) -> Any:
+        if kind in _CONTAINERS:
+            return value
+        if kind is dict:
+            return (x for pair in value.items() for x in pair)
+        if kind is slice:
+            return (value.start, value.stop, value.step)
+        if _registered(kind):
+            fields = dataclasses.fields(value)
+            extra = (
+                set(vars(value)) - {f.name for f in fields} if hasattr(value, "__dict__") else ()
+            )
+            missing = [f.name for f in fields if not hasattr(value, f.name)]
+            if extra or missing:
+                raise CodecError(
+                    f"a {kind.__qualname__} with attributes {sorted(extra) or missing} "
+                    "beyond or short of its fields is not accepted"
+                )
+            return [getattr(value, f.name) for f in fields]
+        raise CodecError(f"a value of type {kind.__module__}.{kind.__qualname__} is not accepted")
