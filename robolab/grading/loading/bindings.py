@@ -42,8 +42,9 @@ OPAQUE_LINE_MAGICS = frozenset({"run", "store"})
 
 
 #: Calls through which a cell binds names no analysis sees (``globals()[n] = f``,
-#: ``exec(src)``, ``vars()``/``locals()`` at module level: the module's namespace).
-_OPAQUE_CALLS = frozenset({"globals", "exec", "vars", "locals"})
+#: ``vars()``/``locals()`` at module level: the module's namespace). ``exec(src)`` too,
+#: unless given a namespace of its own (``exec(src, ns)`` binds in ``ns``).
+_OPAQUE_CALLS = frozenset({"globals", "vars", "locals"})
 
 
 def shell_call(node: ast.AST, method: str, count: int) -> list[str] | None:
@@ -167,14 +168,23 @@ def _suppresses(expr: ast.expr) -> bool:
 def is_opaque(tree: ast.AST) -> bool:
     """Whether ``tree`` may bind module names no analysis sees.
 
-    ``globals()``, ``exec``, module-level ``vars()``/``locals()``, ``sys.modules``,
-    ``__main__``, ``setattr``/``delattr`` on a module, ``%run`` and ``%store``.
+    ``globals()``, ``exec`` without a namespace of its own, module-level
+    ``vars()``/``locals()``, ``sys.modules``, ``__main__``, ``setattr``/``delattr`` on
+    a name that may be a module (``me = sys.modules[__name__]`` in another cell),
+    ``%run`` and ``%store``.
     """
     for node in ast.walk(tree):
         if isinstance(node, ast.Call):
             func = node.func
             if isinstance(func, ast.Name) and func.id in _OPAQUE_CALLS:
                 return True
+            if isinstance(func, ast.Name) and func.id == "exec":
+                if len(node.args) + len(node.keywords) < 2:
+                    return True
+            if isinstance(func, ast.Name) and func.id in ("setattr", "delattr") and node.args:
+                target = node.args[0]
+                if not (isinstance(target, ast.Name) and target.id in ("self", "cls")):
+                    return True
             args = shell_call(node, "run_line_magic", 2)
             if args is not None and args[0] in OPAQUE_LINE_MAGICS:
                 return True

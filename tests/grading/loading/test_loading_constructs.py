@@ -69,6 +69,16 @@ NOTEBOOKS = [
     ),
     ("exec-then-value", ["exec('def f():\\n    return K')", "K = 5"], 5),
     (
+        "setattr-module-by-name",
+        [
+            "def _g():\n    return 2",
+            "import sys\nme = sys.modules[__name__]",
+            "x = 1",
+            "setattr(me, 'f', _g)",
+        ],
+        2,
+    ),
+    (
         "setattr-module",
         ["def _g():\n    return 1", "import sys\nsetattr(sys.modules[__name__], 'f', _g)"],
         1,
@@ -148,6 +158,8 @@ def test_scratch_cells_that_bind_nothing_needed_are_still_skipped(tmp_path):
         "import time\ntime.sleep(60)",  # a demo
         "if False:\n    def f():\n        return 2",
         "print(1 / 0)",
+        "exec('g = 1', {})",  # a namespace of its own: binds nothing of the notebook's
+        "class C:\n    def __init__(self):\n        setattr(self, 'x', 1)\n\n\nC()",
     ]
     assert [i for i, _ in _load(tmp_path, cells).cells] == [0, 2]
 
