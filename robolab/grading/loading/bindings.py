@@ -15,6 +15,7 @@ from __future__ import annotations
 import ast
 import getopt
 import os
+import re
 import shlex
 import symtable
 
@@ -165,14 +166,21 @@ def _suppresses(expr: ast.expr) -> bool:
     return name == "suppress"
 
 
-def is_opaque(tree: ast.AST) -> bool:
-    """Whether ``tree`` may bind module names no analysis sees.
+#: Words every opaque construct of :func:`is_opaque` contains (most cells have none:
+#: they are not walked).
+_OPAQUE_WORDS = re.compile(r"globals|exec|vars|locals|modules|__main__|setattr|delattr|magic")
+
+
+def is_opaque(tree: ast.AST, text: str | None = None) -> bool:
+    """Whether ``tree`` (of source ``text``, when given) may bind module names no analysis sees.
 
     ``globals()``, ``exec`` without a namespace of its own, module-level
     ``vars()``/``locals()``, ``sys.modules``, ``__main__``, ``setattr``/``delattr`` on
     a name that may be a module (``me = sys.modules[__name__]`` in another cell),
     ``%run`` and ``%store``.
     """
+    if text is not None and not _OPAQUE_WORDS.search(text):
+        return False
     for node in ast.walk(tree):
         if isinstance(node, ast.Call):
             func = node.func

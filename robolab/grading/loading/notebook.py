@@ -285,7 +285,8 @@ def _analyse(index: int, source: str, files: dict[str, str] | None = None, depth
         found += timed_statements(tree)  # `%time y = f()` binds y in the kernel
     for node, text in found:
         _add_statement(cell, node, text)
-    cell.opaque = cell.star or is_opaque(tree)
+    written = is_opaque(tree, python)
+    cell.opaque = cell.star or written
     if cell.opaque:
         # Code it runs from strings (`exec("def f(): ...")`) or from files the notebook
         # wrote (`%run -i helper.py`), and names it looks up by string
@@ -299,7 +300,7 @@ def _analyse(index: int, source: str, files: dict[str, str] | None = None, depth
         cell.reads_functions = looks_up_by_value(tree)
     cell.dynamic_writers = {
         node.name
-        for node in tree.body
+        for node in (tree.body if written else ())
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and is_opaque(node)
     }
     return cell
