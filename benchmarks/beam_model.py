@@ -44,7 +44,7 @@ from robolab.maps import load_maze  # noqa: E402
 from robolab.raycast import cast_rays, castraysingle  # noqa: E402
 from solutions import beam_model as lab  # noqa: E402
 
-N_POSES, REPEATS, TARGET = 2500, 5, 10.0
+N_POSES, REPEATS, TARGET = timing.sized(2500, 20), 5, 10.0
 BEAMS = np.deg2rad(np.linspace(-90.0, 90.0, 61))
 PARAMS = {
     "z_hit": 0.9,
@@ -127,7 +127,7 @@ def main():
     cast_rays(grid, poses[:10], BEAMS, PARAMS["max_range"])  # build and cache the distance field
 
     rows = []
-    n_seed, n_pose = 20, 200
+    n_seed, n_pose = timing.sized(20, 2), timing.sized(200, 5)
     ref = seed_loop(scan, grid, poses[:n_seed], PARAMS)
     t = timing.best_of(seed_loop, 2, scan, grid, poses[:n_seed], PARAMS)
     rows.append(

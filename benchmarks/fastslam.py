@@ -38,10 +38,10 @@ from robolab.geometry import wrap_angle
 from solutions import fastslam as fs
 from solutions.fastslam import fastslam_step, init_particles
 
-M = 100
+M = timing.sized(100, 5)
 K = 15
-STEPS = 300
-BASELINE_STEPS = 60
+STEPS = timing.sized(300, 10)
+BASELINE_STEPS = timing.sized(60, 3)
 TARGET = 200.0  # steps per second
 
 
@@ -103,7 +103,7 @@ def run_python_loop(state, steps, rng):
 
 
 RUN = FiducialRobot(seed=0, n_fiducials=K, n_steps=STEPS).to_run()
-BIG_M, BIG_K, BIG_STEPS, BIG_TARGET = 1000, 100, 100, 100.0
+BIG_M, BIG_K, BIG_STEPS, BIG_TARGET = timing.sized(1000, 5), 100, timing.sized(100, 3), 100.0
 
 
 def ekf_update_matmul(mu, sigma, zz, p, qt):
@@ -113,7 +113,7 @@ def ekf_update_matmul(mu, sigma, zz, p, qt):
     Ht = np.swapaxes(H, -1, -2)
     PHt = sigma @ Ht
     S = H @ PHt + qt
-    S_inv, det_S = fs._inv2(S)
+    S_inv, logdet_S = fs._inv2(S)  # the log-determinant: no overflow for tiny or huge S
     K_gain = PHt @ S_inv
     e = zz - zhat
     e = np.concatenate([e[..., :1], wrap_angle(e[..., 1:2])], -1)
@@ -121,7 +121,7 @@ def ekf_update_matmul(mu, sigma, zz, p, qt):
     new_cov = sigma - K_gain @ H @ sigma
     new_cov = 0.5 * (new_cov + np.swapaxes(new_cov, -1, -2))
     maha = np.einsum("...i,...ij,...j->...", e, S_inv, e)
-    return new_mean, new_cov, -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * np.log(det_S)
+    return new_mean, new_cov, -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * logdet_S
 
 
 def big_workload():

@@ -23,8 +23,8 @@ import numpy as np
 from robolab.world import LANDMARKS
 from solutions.landmark_pf import low_variance_resample, measurement_probability, move_particles
 
-N = 100_000
-BASELINE_N = 2_000
+N = timing.sized(100_000, 100)
+BASELINE_N = timing.sized(2_000, 10)
 U = (np.pi / 4, 20.0)
 NOISE = (5.0, 0.1, 5.0)  # forward, turn, sensor: seed section g
 

@@ -35,7 +35,8 @@ from robolab.maps import OccupancyGrid  # noqa: E402
 from robolab.plotting import mcl as mclplot  # noqa: E402
 from solutions import mcl  # noqa: E402
 
-N_STEP, N_BAG, BEAMS, SUBSET = 5000, 2000, 60, 100
+N_STEP, N_BAG, BEAMS = timing.sized(5000, 20), timing.sized(2000, 20), 60
+SUBSET = timing.sized(100, 5)
 PARAMS = {"alphas": (0.1, 0.1, 0.1, 0.1), "z_hit": 0.9, "z_rand": 0.1, "max_beams": BEAMS}
 
 

@@ -31,6 +31,15 @@ from typing import Any
 
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
+#: ``ROBOLAB_BENCH_TINY=1``: every benchmark runs at its smallest sizes with one repeat, to
+#: show that it still runs to the end (tests/test_benchmarks.py); its figures mean nothing.
+TINY = os.environ.get("ROBOLAB_BENCH_TINY") == "1"
+
+
+def sized(full, tiny):
+    """``full``, or ``tiny`` under ``ROBOLAB_BENCH_TINY=1``."""
+    return tiny if TINY else full
+
 if "numpy" in sys.modules:
     warnings.warn(
         "timing imported after numpy: the thread variables come too late to take effect",
@@ -76,6 +85,7 @@ def best_of(fn: Callable[..., Any], repeats: int, *args: Any, **kwargs: Any) -> 
     """
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats}")
+    repeats = sized(repeats, 1)
     wall = cpu = float("inf")
     for _ in range(repeats):
         w0, c0 = time.perf_counter(), time.process_time()
@@ -97,6 +107,7 @@ def interleaved(fns: dict, repeats: int, before=None) -> dict:
     """
     if repeats < 1:
         raise ValueError(f"repeats must be >= 1, got {repeats}")
+    repeats = sized(repeats, 1)
     best = dict.fromkeys(fns, float("inf"))
     for _ in range(repeats):
         for key, fn in fns.items():

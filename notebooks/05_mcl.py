@@ -952,10 +952,12 @@ ax.set(title="Fraction of random particles injected, 1 - w_fast / w_slow", xlabe
 
 # %%
 from robolab.datasets import DataSetUnavailable
-from robolab.realdata.localization import neato_localization
+from robolab.realdata.localization import NEATO_SCAN_DELAY, neato_localization
 
 try:
-    neato = neato_localization()
+    # The Neato's scans are stamped about 0.3 s late against its odometry and the camera:
+    # odometry and truth are read that long before each scan's stamp.
+    neato = neato_localization(scan_delay=NEATO_SCAN_DELAY)
 except DataSetUnavailable as exc:
     print(exc)
 else:
@@ -974,7 +976,7 @@ else:
 
 # %%
 try:
-    neato = neato_localization()
+    neato = neato_localization(scan_delay=NEATO_SCAN_DELAY)
 except DataSetUnavailable as exc:
     print(exc)
 else:

@@ -20,6 +20,28 @@ from pathlib import Path
 #: Exit status of a user error (as argparse's).
 USAGE = 2
 
+#: Sub-commands that need the instructor's copy of robolab: the hidden tests and the
+#: reference solutions, which the student edition does not have.
+INSTRUCTOR_COMMANDS = ("grade", "solve", "release", "gradescope", "merge", "similarity")
+
+
+def instructor_copy() -> bool:
+    """True when this robolab has the answer key beside it (solutions/ and tests/labs/)."""
+    from robolab.grading.labs import project_root
+
+    root = project_root()
+    return (root / "solutions").is_dir() and (root / "tests" / "labs").is_dir()
+
+
+def _needs_instructor_copy(command: str) -> int:
+    print(
+        f"robolab: error: {command}: an instructor command; it needs the instructor's copy of "
+        "robolab (the repository, with its hidden tests and reference solutions), and this is "
+        "the student edition. To check your work: robolab check NOTEBOOK",
+        file=sys.stderr,
+    )
+    return USAGE
+
 
 class _Parser(argparse.ArgumentParser):
     """argparse, but a usage error is one line: ``robolab: error: <sub-command>: ...``."""
@@ -67,9 +89,13 @@ def _visibility(text: str) -> tuple[str, str]:
     return exercise, value
 
 
-def _build_parser() -> argparse.ArgumentParser:
+def _build_parser(instructor: bool = True) -> argparse.ArgumentParser:
+    """The command line; the student edition (``instructor=False``) lists only its commands."""
     p = _Parser(
-        prog="robolab", description="robolab: probabilistic-robotics labs and their autograder"
+        prog="robolab",
+        description="robolab: probabilistic-robotics labs and their autograder"
+        if instructor
+        else "robolab: probabilistic-robotics labs (student edition: check your notebooks)",
     )
     p.add_argument(
         "--version", action="version", version=f"robolab {__import__('robolab').__version__}"
@@ -173,6 +199,11 @@ def _build_parser() -> argparse.ArgumentParser:
     )
     gs.add_argument("--late-penalty", type=_percent, default=0.0, metavar="PERCENT")
     gs.add_argument("--late-cap", type=_percent, default=100.0, metavar="PERCENT")
+    if not instructor:  # the student edition offers only what it can do
+        for name in INSTRUCTOR_COMMANDS:
+            sub.choices.pop(name, None)
+        offered = [a for a in sub._choices_actions if a.dest not in INSTRUCTOR_COMMANDS]
+        sub._choices_actions = offered
     return p
 
 
@@ -206,7 +237,7 @@ def _dispatch(args) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    if (sys.argv[1:] if argv is None else list(argv))[:1] == ["grade"]:
+    if (sys.argv[1:] if argv is None else list(argv))[:1] == ["grade"] and instructor_copy():
         # Before anything else: the zygotes' imports (half a second) run while the
         # arguments are parsed and the batch is read. A command that ends before they
         # are ready (a usage error, --help) kills them at exit instead of waiting.
@@ -216,7 +247,11 @@ def main(argv: list[str] | None = None) -> int:
         from robolab.grading.running.runner import start_zygotes
 
         start_zygotes()
-    args = _build_parser().parse_args(argv)
+    instructor = instructor_copy()
+    command = (sys.argv[1:] if argv is None else list(argv))[:1]
+    if not instructor and command and command[0] in INSTRUCTOR_COMMANDS:
+        return _needs_instructor_copy(command[0])
+    args = _build_parser(instructor).parse_args(argv)
     try:
         return _dispatch(args)
     except OSError as exc:  # a file the user named cannot be read or written

@@ -13,6 +13,7 @@ import numpy as np
 
 __all__ = [
     "as_array",
+    "as_observations",
     "as_poses",
     "check_count",
     "check_covariance",
@@ -206,3 +207,28 @@ def check_probability_vector(name: str, value, *, axis: int = -1, atol: float = 
     if not np.allclose(sums, 1.0, atol=atol, rtol=0):
         raise ValueError(f"{name} must sum to 1 along axis {axis}, got {np.ravel(sums)[:3]}")
     return arr
+
+
+def as_observations(name: str, value, n_landmarks: int) -> np.ndarray:
+    """Range-bearing observations with known correspondence as a ``(k, 3)`` float array.
+
+    Rows are ``[range, bearing, id]``: ranges >= 0, ids integers in ``[0, n_landmarks)``,
+    everything finite. ``None`` and empty input give an empty ``(0, 3)`` array.
+    """
+    if value is None:
+        return np.empty((0, 3))
+    obs = as_array(name, value, finite=True)
+    if obs.size == 0:
+        return np.empty((0, 3))
+    if obs.ndim != 2 or obs.shape[1] != 3:
+        raise ValueError(
+            f"{name} must have shape (k, 3) rows [range, bearing, id], got {obs.shape}"
+        )
+    ids = obs[:, 2]
+    if np.any(ids != np.round(ids)) or np.any(ids < 0) or np.any(ids >= n_landmarks):
+        raise ValueError(
+            f"{name}' ids must be integers in [0, {n_landmarks}), got {ids.tolist()}"
+        )
+    if np.any(obs[:, 0] < 0):
+        raise ValueError(f"{name}' ranges must be >= 0, got {obs[:, 0].tolist()}")
+    return obs

@@ -46,6 +46,7 @@ from robolab.fiducials import DT, as_robot, sqrt_psd
 from robolab.geometry import wrap_angle
 from robolab.validation import (
     as_array,
+    as_observations,
     check_count,
     check_covariance,
     check_covariance_stack,
@@ -653,23 +654,7 @@ def _check_state(state) -> dict:
 
 
 def _observations(observations, n_landmarks) -> np.ndarray:
-    if observations is None:
-        return np.empty((0, 3))
-    obs = as_array("observations", observations, finite=True)
-    if obs.size == 0:
-        return np.empty((0, 3))
-    if obs.ndim != 2 or obs.shape[1] != 3:
-        raise ValueError(
-            f"observations must have shape (k, 3) rows [range, bearing, id], got {obs.shape}"
-        )
-    ids = obs[:, 2]
-    if np.any(ids != np.round(ids)) or np.any(ids < 0) or np.any(ids >= n_landmarks):
-        raise ValueError(
-            f"observations' ids must be integers in [0, {n_landmarks}), got {ids.tolist()}"
-        )
-    if np.any(obs[:, 0] < 0):
-        raise ValueError(f"observations' ranges must be >= 0, got {obs[:, 0].tolist()}")
-    return obs
+    return as_observations("observations", observations, n_landmarks)
 
 
 def _mean_pose(poses: np.ndarray, weights: np.ndarray) -> np.ndarray:

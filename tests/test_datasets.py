@@ -401,13 +401,21 @@ def test_read_recording_with_configured_topics(truth_bag):
     np.testing.assert_allclose(
         delayed.truth[:-1], read_track_at(path, rec.scans.stamps[:-1] + 0.05)
     )
+    # late scans: odometry and truth are both read scan_delay before each scan's stamp
+    late = read_recording(path, scan_topic="/scan", truth="/map_pose", scan_delay=0.05)
+    stamps = late.scans.stamps
+    assert stamps[0] >= rec.scans.stamps[0] and len(stamps) <= len(rec.scans.stamps)
+    np.testing.assert_allclose(late.truth, read_track_at(path, stamps - 0.05))
+    np.testing.assert_allclose(late.odom, read_track_at(path, stamps - 0.05, "/odom"))
+    with pytest.raises(ValueError, match="scan_delay"):
+        read_recording(path, scan_topic="/scan", truth="/map_pose", scan_delay=float("nan"))
 
 
-def read_track_at(path, stamps):
+def read_track_at(path, stamps, topic="/map_pose"):
     from robolab.bag import BagReader
 
     with BagReader(path) as bag:
-        return read_track(bag, "/map_pose").at(stamps)
+        return read_track(bag, topic).at(stamps)
 
 
 def test_read_recording_errors_name_what_is_wrong(truth_bag):

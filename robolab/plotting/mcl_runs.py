@@ -112,6 +112,7 @@ def load_localization(
     truth="/ground_truth",
     base_frame: str = "base_link",
     truth_delay: float = 0.0,
+    scan_delay: float = 0.0,
 ) -> LocalizationData:
     """Read ``data/localization.bag`` and ``data/office.yaml`` (or the given files).
 
@@ -119,7 +120,8 @@ def load_localization(
     laser mount comes from ``/tf`` (``laser_pose_in_base``). The topics and message
     types are configurable (:func:`robolab.datasets.rosbag.read_recording`): ``odom``
     and ``truth`` are an Odometry or PoseStamped topic or ``("/tf", parent, child)``.
-    The real Olin Neato bag loads with ``scan_topic="/scan", truth="/map_pose"``.
+    The real Olin Neato bag loads with ``scan_topic="/scan", truth="/map_pose"``;
+    ``truth_delay`` and ``scan_delay`` are :func:`~robolab.datasets.rosbag.read_recording`'s.
     """
     from robolab import DATA_DIR
     from robolab.datasets.rosbag import read_recording
@@ -134,6 +136,7 @@ def load_localization(
         truth=truth,
         base_frame=base_frame,
         truth_delay=truth_delay,
+        scan_delay=scan_delay,
     )
     if rec.truth is None:
         raise ValueError("load_localization needs a ground-truth source (truth=None given)")

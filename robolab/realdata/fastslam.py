@@ -1,4 +1,7 @@
-"""Lab 07 on real data: FastSLAM 1.0 on the Freiburg course's range-bearing data set.
+"""Lab 07 on real data: FastSLAM 1.0 on the Freiburg course's data set and on UTIAS MRCLAM.
+
+MRCLAM (:func:`run_fastslam_mrclam`) gives unicycle commands on a 0.02 s grid, as the
+lab's fiducial robot does. Freiburg (:func:`run_fastslam_freiburg`):
 
 The data set's motion is the odometry motion model ``(r1, t, r2)``; the lab's
 :func:`fastslam_step` takes unicycle commands ``(v, w)`` with an Euler step
@@ -14,11 +17,12 @@ from collections.abc import Callable
 import numpy as np
 
 from robolab.datasets.freiburg import FreiburgData
+from robolab.datasets.mrclam import MrclamRun
 from robolab.evaluation import align_points
 from robolab.geometry import transform_points
 from robolab.validation import check_count, check_rng
 
-__all__ = ["MOTION_NOISE", "MEASUREMENT_NOISE", "run_fastslam_freiburg"]
+__all__ = ["MOTION_NOISE", "MEASUREMENT_NOISE", "run_fastslam_freiburg", "run_fastslam_mrclam"]
 
 #: Standard deviations of the odometry ``(r1, t, r2)``: radians, metres, radians
 #: (the course's FastSLAM exercise).
@@ -81,15 +85,92 @@ def run_fastslam_freiburg(
         obs = data.indexed_observations(i)
         state = fastslam_step(state, [t, r2], obs, q_drive, Qt, rng, 1.0, resample)
         if len(obs):
-            seen[obs[:, 2].astype(np.intp)] = True
-            resamples += bool(np.all(state["weights"] == state["weights"][0]))
+            ids = obs[:, 2].astype(np.intp)
+            # Equal weights after the step mean it resampled, unless every landmark it saw
+            # was new: first sightings weigh all particles alike, so with an ESS threshold
+            # nothing was resampled (step 0 is such a step).
+            informative = resample is True or bool(seen[ids].any())
+            resamples += informative and bool(np.all(state["weights"] == state["weights"][0]))
+            seen[ids] = True
         path.append(_mean_pose(state))
+    return _scored(state, seen, data.landmarks, path, resamples)
+
+
+def run_fastslam_mrclam(
+    run: MrclamRun,
+    n_particles: int,
+    rng: np.random.Generator,
+    *,
+    fastslam_step: Callable,
+    init_particles: Callable,
+    Q,
+    Qt,
+    ess_threshold: float | None = 0.5,
+    steps: int | None = None,
+) -> dict:
+    """Run the lab's FastSLAM functions over one robot of an MRCLAM data set.
+
+    The robot starts at its true first pose (which fixes the map's frame); step ``s``
+    drives with the command in force at ``run.t[s - 1]`` for ``run.dt`` seconds, then
+    weighs the landmark measurements of step ``s`` (``run.observations(s)``, rows
+    ``[range, bearing, landmark row]``).
+
+    Parameters
+    ----------
+    run : MrclamRun
+        From :func:`robolab.datasets.read_mrclam`.
+    n_particles : int
+    rng : numpy.random.Generator
+    fastslam_step, init_particles : callable
+        The lab's functions, as the notebook defines them.
+    Q : array_like, shape (3, 3)
+        Motion noise covariance per step; ``Qt`` (2, 2) the measurement noise's.
+    ess_threshold : float or None
+        As in :func:`run_fastslam_freiburg`.
+    steps : int, optional
+        Only the first ``steps`` steps (default: the whole run).
+
+    Returns
+    -------
+    dict
+        As :func:`run_fastslam_freiburg`, plus ``path_error`` (S,) metres against
+        ``run.truth``.
+    """
+    if not (callable(fastslam_step) and callable(init_particles)):
+        raise TypeError("fastslam_step and init_particles must be the lab's functions (callables)")
+    n = check_count("n_particles", n_particles)
+    check_rng(rng)
+    last = len(run) if steps is None else min(len(run), check_count("steps", steps))
+    k = len(run.landmarks)
+    state = init_particles(n, k, np.asarray(run.truth[0], dtype=float), "first_observation")
+    resample = True if ess_threshold is None else float(ess_threshold)
+    path, resamples, seen = [_mean_pose(state)], 0, np.zeros(k, dtype=bool)
+    for s in range(1, last):
+        obs = run.observations(s)
+        state = fastslam_step(state, run.commands[s - 1], obs, Q, Qt, rng, run.dt, resample)
+        if len(obs):
+            ids = obs[:, 2].astype(np.intp)
+            informative = resample is True or bool(seen[ids].any())
+            resamples += informative and bool(np.all(state["weights"] == state["weights"][0]))
+            seen[ids] = True
+        path.append(_mean_pose(state))
+    result = _scored(state, seen, run.landmarks, path, resamples)
+    truth = run.truth[:last]
+    result["path_error"] = np.hypot(*(result["path"][:, :2] - truth[:, :2]).T)
+    return result
+
+
+def _scored(state, seen, true_landmarks, path, resamples) -> dict:
+    """The weighted-mean map of ``state`` against the true landmarks (unseen ones NaN)."""
     w = np.asarray(state["weights"])
     landmarks = np.einsum("k,kjd->jd", w, np.asarray(state["means"]))
     landmarks[~seen] = np.nan
-    err = np.hypot(*(landmarks - data.landmarks).T)
-    pose = align_points(landmarks, data.landmarks)
-    aligned = np.hypot(*(transform_points(landmarks, pose) - data.landmarks).T)
+    err = np.hypot(*(landmarks - true_landmarks).T)
+    try:
+        pose = align_points(landmarks, true_landmarks)  # NaN rows (unseen) are left out
+        aligned = np.hypot(*(transform_points(landmarks, pose) - true_landmarks).T)
+    except ValueError:  # fewer than two distinct landmarks fix no rotation: no alignment
+        pose, aligned = np.zeros(3), err
     return {
         "path": np.array(path),
         "landmarks": landmarks,

@@ -173,3 +173,20 @@ def test_unwritable_out_folder(tmp_path):
     locked = tmp_path / "locked"
     locked.mkdir(mode=0o500)
     assert_user_error(robolab("grade", DEMO / "correct.ipynb", "--out", locked), "--out")
+
+
+def test_the_student_edition_offers_student_commands_and_names_what_the_others_need(tmp_path):
+    """Without the answer key beside robolab, grade/solve/release/gradescope are not offered,
+    and calling one says it needs the instructor's copy (not that pytest is missing)."""
+    env = {**os.environ, "ROBOLAB_ROOT": str(tmp_path)}  # a root without solutions/ or tests/
+    run = lambda *a: subprocess.run(  # noqa: E731
+        [sys.executable, "-m", "robolab.cli", *a], capture_output=True, text=True, env=env,
+        timeout=120,
+    )
+    listed = run("--help").stdout
+    assert "check" in listed and "student edition" in listed
+    for command in ("grade", "solve", "release", "gradescope"):
+        assert f"    {command}" not in listed
+        proc = run(command, "x.ipynb")
+        assert_user_error(proc, command, "instructor's copy", "robolab check")
+    assert "grade" in robolab("--help").stdout  # the instructor's copy offers everything

@@ -44,13 +44,15 @@ say `# YOUR CODE HERE` and run the visible check below each exercise.
 
 ## On your machine
 
-    python -m venv .venv && .venv/bin/pip install -e .
-    .venv/bin/pip install jupyterlab
+    python -m venv .venv && .venv/bin/pip install -e '.[lab]'
     .venv/bin/jupyter lab notebooks/
 
 or, with only the wheel (`dist/robolab-*.whl`) and a notebook:
 
-    pip install robolab-*.whl jupyterlab && jupyter lab
+    pip install "$(ls robolab-*.whl)[lab]" && jupyter lab
+
+(`[lab]` adds JupyterLab; without it robolab installs only what the labs import, for
+a Jupyter you already have.)
 
 The maps, bags and data sets come inside the package (`robolab.DATA_DIR`), so a
 notebook runs from any folder.
@@ -143,6 +145,9 @@ def student_pyproject(root: Path) -> str:
     }
     project["readme"] = "README.md"
     parts = [_table("build-system", config["build-system"]), _table("project", project)]
+    extras = config["project"].get("optional-dependencies", {})
+    if "lab" in extras:  # the student's JupyterLab; the instructor's extras stay behind
+        parts.append(_table("project.optional-dependencies", {"lab": extras["lab"]}))
     if scripts := config["project"].get("scripts"):
         parts.append(_table("project.scripts", scripts))
     parts.append(_table("tool.setuptools.packages.find", {"include": ["robolab*"]}))

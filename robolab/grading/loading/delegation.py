@@ -79,6 +79,10 @@ FORBIDDEN: dict[str, dict[str, list[str]]] = {
         "predict_poses": ["robolab.fiducials.unicycle"],
         "h": ["robolab.fiducials._range_bearing"],
     },
+    "ekf_slam": {
+        "predict": ["robolab.fiducials.unicycle"],
+        "observation": ["robolab.fiducials._range_bearing"],
+    },
     "demo": {
         "wrap": ["robolab.geometry.wrap_angle", "robolab.geometry.angle_diff"],
         "mean_pose": ["robolab.bag.PoseTrack.at", "robolab.plotting.mcl.estimate_pose"],

@@ -90,6 +90,17 @@ APPLICABLE = {
         "aliasing",
         "delegation",
     },
+    "ekf_slam": {
+        "refusal",
+        "angle-wrap",
+        "empty-map",
+        "jacobian-point",
+        "formula",
+        "reported-estimate",
+        "aliasing",
+        "self-consistency",
+        "delegation",
+    },
 }
 #: Whether the worker observes argument changes and result aliasing (issue 14 item 5). Until
 #: it does, arguments cross as copies and an in-place mistake cannot lose points.

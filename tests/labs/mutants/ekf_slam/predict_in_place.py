@@ -1,0 +1,34 @@
+"""Writes the prediction into the mu and sigma passed in, and returns them.
+
+class: aliasing
+"""
+
+import numpy as np
+
+from robolab.fiducials import DT
+from robolab.geometry import wrap_angle
+from robolab.validation import as_array, check_covariance, check_positive
+from solutions.ekf_slam import MOTIONS, _belief
+
+
+def predict(mu, sigma, command, R, dt=DT, motion="unicycle"):
+    _belief(mu, sigma)
+    r = check_covariance("R", R, 3)
+    if motion not in MOTIONS:
+        raise ValueError(f"motion must be one of {MOTIONS}, got {motion!r}")
+    theta = mu[2]
+    if motion == "unicycle":
+        u = as_array("command", command, shape=(2,), finite=True)
+        step = check_positive("dt", dt)
+        dist, heading, turn = u[0] * step, theta, u[1] * step
+    else:
+        u = as_array("command", command, shape=(3,), finite=True)
+        dist, heading, turn = u[1], theta + u[0], u[0] + u[2]
+    g = np.eye(3)
+    g[0, 2], g[1, 2] = -dist * np.sin(heading), dist * np.cos(heading)
+    mu[:3] += (dist * np.cos(heading), dist * np.sin(heading), turn)
+    mu[2] = wrap_angle(mu[2])
+    sigma[:3, :3] = g @ sigma[:3, :3] @ g.T + r
+    sigma[:3, 3:] = g @ sigma[:3, 3:]
+    sigma[3:, :3] = sigma[:3, 3:].T
+    return mu, sigma
