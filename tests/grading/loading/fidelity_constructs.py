@@ -22,20 +22,12 @@ import textwrap
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from robolab.grading.labs import discover_labs
 from robolab.grading.loading.notebook import _analyse
 from tests.grading.loading.fidelity_variants import Cell, Variant, solved_cells
 
-#: Every lab with exercises and hidden tests (the demo lab is covered by fidelity_variants).
-LABS = (
-    "frames",
-    "bayes",
-    "beam_model",
-    "landmark_pf",
-    "odometry_mapping",
-    "mcl",
-    "ekf_mapping",
-    "fastslam",
-)
+#: Every lab of the course (the demo lab is covered by fidelity_variants).
+LABS = tuple(lab.name for lab in discover_labs() if lab.name != "demo")
 
 #: A style: (cells, position of f's exercise cell, f, a unique stem for file and module names)
 #: -> the new cells. It may insert cells only right after the exercise cell (before its
