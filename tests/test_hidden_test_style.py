@@ -28,6 +28,7 @@ ENFORCED = [
     "ekf_mapping",
     "fastslam",
     "ekf_slam",
+    "graph_slam",
 ]
 #: numpy.testing functions without an err_msg parameter.
 NO_ERR_MSG = {"assert_raises", "assert_raises_regex", "assert_warns", "assert_no_warnings"}

@@ -100,7 +100,9 @@ def grade(
         return _error(f"--timeout must be a positive number of seconds, got {timeout:g}")
     if jobs < 1:
         return _error(f"--jobs must be at least 1, got {jobs}")
-    missing = [p for p in submissions if not Path(p).is_file()]
+    # Only a path that names nothing stops the batch (a typo); a folder, a fifo or an
+    # unreadable file is that submission's problem, reported in its row.
+    missing = [p for p in submissions if not os.path.lexists(p)]
     if missing:
         return _error(f"no such notebook: {_shown(missing[0])}")
     root = project_root()

@@ -16,8 +16,6 @@ points with overrides, ``final`` is ``total`` after the late penalty.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import re
 from collections.abc import Sequence
@@ -28,6 +26,7 @@ from robolab.grading.course.batch import atomic_write, display_path
 from robolab.grading.course.late import Lateness
 from robolab.grading.course.overrides import Override, apply_overrides
 from robolab.grading.course.roster import RosterMatch
+from robolab.grading.course.spreadsheet import csv_text
 from robolab.grading.running.runner import SubmissionResult, TestOutcome
 
 __all__ = [
@@ -156,9 +155,7 @@ def write_gradebook(
     exercises = _exercise_columns(results)
     # The isolation column only when the sandbox left something unprotected (then on every row).
     tail = _CSV_TAIL + (["isolation"] if any(r.isolation for r in results) else [])
-    buffer = io.StringIO()
-    w = csv.writer(buffer)
-    w.writerow([*_CSV_HEAD, *exercises, *tail])
+    table = [[*_CSV_HEAD, *exercises, *tail]]
     for row in rows:
         per = [
             _pts(row["exercises"][e]["earned"]) if e in row["exercises"] else "" for e in exercises
@@ -167,12 +164,9 @@ def write_gradebook(
             k: "; ".join(v) if isinstance(v, list) else _pts(v) if isinstance(v, float) else v
             for k, v in row.items()
         }
-        w.writerow(
-            [*("" if cells[k] is None else cells[k] for k in _CSV_HEAD), *per]
-            + ["" if cells.get(k) is None else cells[k] for k in tail]
-        )
+        table.append([*(cells[k] for k in _CSV_HEAD), *per] + [cells.get(k) for k in tail])
     atomic_write(json_path, json.dumps(rows, indent=1) + "\n")
-    atomic_write(csv_path, buffer.getvalue())
+    atomic_write(csv_path, csv_text(table))  # no cell a spreadsheet would evaluate
     return csv_path, json_path
 
 

@@ -20,14 +20,16 @@ Python is left as it is, which is what IPython's transformation does to it.
 from __future__ import annotations
 
 import ast
+import builtins
 import functools
 import json
 import re
 import symtable
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from robolab.grading.labs import LabError, read_submission
 from robolab.grading.loading.bindings import (
     ALL,
     code_strings,
@@ -74,6 +76,7 @@ _BUILTINS = frozenset(dir(__import__("builtins"))) | {"get_ipython", "display", 
 LABEL_CHARS = 40
 
 _DEF_LINE = re.compile(r"^\s*(?:async\s+def|def|class)\s+([A-Za-z_]\w*)", re.MULTILINE)
+_WORD = re.compile(r"[A-Za-z_]\w*")
 
 
 class NotebookError(Exception):
@@ -413,7 +416,7 @@ def lab_exercises(lab: str | None) -> tuple[str, ...]:
     """
     if not lab:
         return ()
-    from robolab.grading.labs import Lab, LabError, project_root
+    from robolab.grading.labs import Lab, project_root
 
     try:
         found = Lab(lab, project_root())
@@ -458,10 +461,10 @@ def _text(source: object) -> str:
 
 
 def _read(path: Path) -> dict:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise NotebookError(f"{path}: cannot read the notebook: {exc.strerror or exc}") from exc
+    try:  # never blocks on a fifo, never reads a device or a huge file without end
+        text = read_submission(path).decode("utf-8")
+    except LabError as exc:
+        raise NotebookError(str(exc)) from None
     except UnicodeDecodeError as exc:
         raise NotebookError(f"{path}: is not a notebook: not UTF-8 text ({exc.reason})") from exc
     try:
@@ -471,6 +474,10 @@ def _read(path: Path) -> dict:
             f"{path}: is not a notebook: not valid JSON "
             f"(line {exc.lineno} column {exc.colno}: {exc.msg})"
         ) from exc
+    except RecursionError:
+        raise NotebookError(f"{path}: is not a notebook: its JSON is nested too deeply") from None
+    except ValueError as exc:  # a number of more digits than Python converts
+        raise NotebookError(f"{path}: is not a notebook: not valid JSON ({exc})") from None
     if not isinstance(nb, dict) or not isinstance(nb.get("cells"), list):
         raise NotebookError(f"{path}: is not a notebook: it has no list of cells")
     if not isinstance(nb.get("nbformat"), int) or nb["nbformat"] < 4:
@@ -566,11 +573,17 @@ def load_notebook(
 
     needed = needed_cells(cells, names)
     wanted = set(names) | {n for cell in needed for n in cell.reads_now | cell.reads_later}
-    problems = [
-        CellProblem(cell.index, "syntax", _syntax_message(cell.error), labels[cell.index])
-        for cell in cells
-        if cell.error is not None and set(_DEF_LINE.findall(raw[cell.index])) & wanted
-    ]
+    # A cell that does not parse binds nothing: name it when it defines a graded function
+    # or mentions a name the needed cells use and no cell binds (an imports cell).
+    unbound = wanted - {n for cell in cells for n in cell.binds} - set(dir(builtins))
+    problems = []
+    for cell in cells:
+        if cell.error is None:
+            continue
+        missing = sorted(unbound & set(_WORD.findall(raw[cell.index])))
+        if missing or set(_DEF_LINE.findall(raw[cell.index])) & wanted:
+            message = _syntax_message(cell.error, missing)
+            problems.append(CellProblem(cell.index, "syntax", message, labels[cell.index]))
     # A skipped cell's `from __future__` imports still hold in the cells after it.
     chosen = {cell.index for cell in needed}
     kept = [
@@ -611,7 +624,12 @@ def _joined(cells: list[tuple[int, str]]) -> str:
     return text + "\n" if text else ""
 
 
-def _syntax_message(exc: SyntaxError) -> str:
+def _syntax_message(exc: SyntaxError, needed: Sequence[str] = ()) -> str:
     where = f"line {exc.lineno}" if exc.lineno else "somewhere"
     text = f": {exc.text.strip()}" if exc.text and exc.text.strip() else ""
-    return f"it does not parse, so nothing in it is defined: {exc.msg} ({where}{text})"
+    uses = (
+        f"; your graded functions use {', '.join(needed)}, which only this cell would define"
+        if needed
+        else ""
+    )
+    return f"it does not parse, so nothing in it is defined: {exc.msg} ({where}{text}){uses}"

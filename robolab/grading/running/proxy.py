@@ -66,6 +66,9 @@ BUDGET_CALLS = 5
 BUDGET_FACTOR = 8.0
 MIN_BUDGET_SECONDS = 60.0
 
+#: The grader thread's CPU clock, which decoding a result is charged by.
+decode_clock = time.thread_time
+
 #: Largest message accepted from a worker (a result, in pickled form): the codec's limit.
 MAX_MESSAGE_BYTES = codec.LIMITS.max_bytes
 #: Seconds a worker may take to start and isolate itself (before student code runs).
@@ -388,17 +391,23 @@ class _Worker:
             raise StudentCodeError(
                 "the worker sent more than one answer to one request", kind="protocol"
             )
-        self._end_call(cpu_limit)
-        return codec.loads(bytes(buffer[HEADER.size :]))
+        # Decoding is the grader's CPU, spent on this submission's behalf: it is
+        # charged to the call (the codec bounds it to a small multiple of the size).
+        started = decode_clock()
+        try:
+            return codec.loads(bytes(buffer[HEADER.size :]))
+        finally:
+            self._end_call(cpu_limit, decode_clock() - started)
 
-    def _end_call(self, cpu_limit: float | None) -> None:
-        """Kill what the call started, charging its CPU time; check the scratch space."""
+    def _end_call(self, cpu_limit: float | None, decoding: float = 0.0) -> None:
+        """Kill what the call started, charging its CPU and ``decoding``; check the scratch."""
         cpu, _ = self.clock.sweep()
-        if cpu_limit is not None and cpu > cpu_limit:
+        if cpu_limit is not None and cpu + decoding > cpu_limit:
             self.kill()
             raise WorkerTimeout(
                 f"timed out: used more than {cpu_limit:g} s of CPU time "
-                f"(with the processes it started: {cpu:.1f} s)",
+                f"(with the processes it started: {cpu:.1f} s; "
+                f"decoding its result: {decoding:.1f} s)",
                 kind="timeout",
             )
         if self.report is not None and self.report.scratch != "tmpfs":

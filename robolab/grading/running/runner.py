@@ -292,12 +292,13 @@ def grade_submission(
     """
     path = Path(path)
     result = SubmissionResult(path=path, name=name or path.stem, lab=lab)
+    try:  # read here, safely, so that a file that is no notebook fails alone, graded as nothing
+        declared = lab_of_notebook(path)
+    except LabError as exc:
+        result.errors.append(str(exc))
+        return result
     if result.lab is None:
-        try:
-            result.lab = lab_of_notebook(path)
-        except LabError as exc:
-            result.errors.append(str(exc))
-            return result
+        result.lab = declared
         if result.lab is None:
             result.errors.append(
                 "the notebook does not say which lab it is (no robolab.lab in its metadata) "
@@ -314,7 +315,7 @@ def grade_submission(
     with tempfile.TemporaryDirectory(prefix="robolab-grade-") as tmp:
         report_path, log = Path(tmp) / "report.json", Path(tmp) / "pytest.log"
         cmd = _pytest_command(
-            python or sys.executable, spec.root, spec.hidden_tests, path.resolve(), report_path
+            python or sys.executable, spec.root, spec.hidden_tests, path.absolute(), report_path
         )
         code, result.seconds = _run(cmd, spec.root, log, timeout)
         report = json.loads(report_path.read_text()) if report_path.is_file() else None

@@ -106,7 +106,7 @@ def test_a_file_name_that_is_not_utf8_is_graded(tmp_path):
     table = csv_rows(out)  # valid UTF-8
     assert len(table) == 3
     bad = next(r for r in table if "broken" in r["path"])
-    assert "not a readable notebook" in bad["errors"] and "\\xff" in bad["errors"]
+    assert "is not a notebook: not valid JSON" in bad["errors"] and "\\xff" in bad["errors"]
     json.loads((out / "gradebook.json").read_bytes().decode("utf-8"))
     row = next(r for r in table if "caf" in r["path"])
     assert row["total"] == "100" and "\\xe9" in row["path"]

@@ -20,6 +20,7 @@ import pytest
 
 import robolab
 from robolab.grading.isolation import processes
+from robolab.grading.loading.notebook import NotebookError
 from robolab.grading.running.proxy import (
     StudentCodeError,
     WorkerCrashed,
@@ -59,7 +60,15 @@ ATTACKS = {
     "daemon": None,
     "child_cpu": WorkerTimeout,
     "slow_calls": WorkerTimeout,
+    "fraction_bomb": StudentCodeError,
+    "delegation_alias": NotImplementedError,
+    "@formula_injection": None,
+    "deep_metadata": None,
 }
+#: The function a notebook attacks, and its arguments, when it is not ``normalize``.
+ATTACKED = {"delegation_alias": ("wrap", (np.pi,))}
+#: Notebooks no step before grading can read: refused whole, with this reason.
+UNREADABLE = {"deep_metadata": "nested too deeply"}
 #: Attacks on the result codec: refused as a result, with a one-line reason.
 RESULT_ATTACKS = {
     "structured_dtype": "dtype",
@@ -69,6 +78,7 @@ RESULT_ATTACKS = {
     "huge_result": "too large",
     "pickle_payload": "not plain data",
     "always_equal": "not plain data",
+    "fraction_bomb": "cost more work",
 }
 
 REAL_NUMPY = (np.allclose, np.isclose, np.testing.assert_allclose, np.testing.assert_array_equal)
@@ -105,16 +115,25 @@ def test_hostile_submission(name, request):
     rss_before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     grader_before = _grader_state()
 
+    if name in UNREADABLE:
+        with pytest.raises(NotebookError, match=UNREADABLE[name]):
+            open_submission(HOSTILE / f"{name}.ipynb", lab="demo", limits=TEST_LIMITS)
+        return
+    attacked, args = ATTACKED.get(name, ("normalize", (WEIGHTS,)))
     with open_submission(HOSTILE / f"{name}.ipynb", lab="demo", limits=TEST_LIMITS) as sub:
         assert sub.problems == []
         start = time.monotonic()
         if expected is None:
             got = sub.normalize(WEIGHTS)
             # What a hidden test does: compare floats with the grader's own numpy.
-            assert got is None or not np.allclose(np.asarray(got, dtype=float), [0.25, 0.75])
+            assert (
+                got is None
+                or isinstance(got, str)
+                or not np.allclose(np.asarray(got, dtype=float), [0.25, 0.75])
+            )
         else:
             with pytest.raises(expected) as info:
-                sub.normalize(WEIGHTS)
+                getattr(sub, attacked)(*args)
             assert isinstance(info.value, StudentCodeError)
             if name in RESULT_ATTACKS:
                 assert info.value.kind == "result"
@@ -150,7 +169,10 @@ def test_hostile_submission(name, request):
             assert resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - rss_before < 50_000  # KiB
 
         # ... and the submission's correct functions still work (after a restart if needed).
-        assert sub.wrap(np.pi) == pytest.approx(-np.pi)
+        if attacked == "wrap":
+            np.testing.assert_allclose(sub.normalize(WEIGHTS), [0.25, 0.75])
+        else:
+            assert sub.wrap(np.pi) == pytest.approx(-np.pi)
         np.testing.assert_allclose(
             sub.mean_pose([[0.0, 0.0, 3.0], [2.0, 2.0, -3.0]]), [1.0, 1.0, -np.pi], atol=1e-9
         )

@@ -79,6 +79,16 @@ APPLICABLE = {
         "aliasing",
         "delegation",
     },
+    "graph_slam": {
+        "refusal",
+        "angle-wrap",
+        "jacobian-point",
+        "reported-estimate",
+        "aliasing",
+        "formula",
+        "boundary",
+        "delegation",
+    },
     "fastslam": {
         "underflow",
         "degenerate-weights",
