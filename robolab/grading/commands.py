@@ -333,7 +333,6 @@ def check(notebook: Path) -> int:
     every visible check passed, 1 when one failed, 2 when the notebook cannot
     be checked.
     """
-    from robolab.checks.base import CheckFailed
     from robolab.grading.loading.notebook import load_notebook
 
     try:
@@ -363,14 +362,33 @@ def check(notebook: Path) -> int:
             f"{_shown(notebook)} is of lab {loaded.lab!r}, which has no visible checks "
             "(is the lab name in the notebook's metadata right?)"
         )
-    # The same cells, run the same way, as `robolab grade` runs them in its worker.
-    from robolab.grading.loading.kernel import load_budget, new_namespace, run_cells
+    # The same cells, run the same way, as `robolab grade` runs them in its worker: as
+    # `__main__`, in a scratch folder of their own (here a temporary one).
+    import tempfile
+
+    from robolab.grading.loading.kernel import Notebook, load_budget
     from robolab.grading.running.proxy import Limits
 
-    namespace = new_namespace("__notebook__")
     budget = load_budget(Limits().wall_seconds, Limits().cpu_seconds)
-    problems = list(loaded.problems)
-    problems += [loaded.problem(*failed) for failed in run_cells(namespace, loaded.cells, *budget)]
+    with (
+        tempfile.TemporaryDirectory(prefix="robolab-check-") as folder,
+        Notebook(folder) as kernel_notebook,
+    ):
+        problems = list(loaded.problems)
+        ran = kernel_notebook.run(loaded.cells, *budget)
+        problems += [loaded.problem(*failed) for failed in ran]
+        failures = _run_checks(visible, kernel_notebook.namespace, problems)
+    if failures:
+        print(f"{failures} of {len(visible)} visible checks failed.")
+        return 1
+    print("visible checks passed (the graded tests are stronger: test your edge cases too).")
+    return 0
+
+
+def _run_checks(visible: list, namespace: dict, problems: list) -> int:
+    """Print the load problems, run each visible check on its function; count the failures."""
+    from robolab.checks.base import CheckFailed
+
     for p in sorted(problems, key=lambda p: p.cell_index):
         print(f"note: {p}")
     failures = 0
@@ -389,11 +407,7 @@ def check(notebook: Path) -> int:
         except CheckFailed as exc:
             print(f"\u2718 {exc}")
             failures += 1
-    if failures:
-        print(f"{failures} of {len(visible)} visible checks failed.")
-        return 1
-    print("visible checks passed (the graded tests are stronger: test your edge cases too).")
-    return 0
+    return failures
 
 
 def _output_file(path: Path, what: str) -> Path:

@@ -48,8 +48,6 @@ HEADER = struct.Struct("<Q")
 MAX_TEXT = 20_000
 #: Top-level packages a submission must never import.
 FORBIDDEN_PACKAGES = frozenset({"solutions", "tests"})
-#: Name of the module the submission's definitions live in.
-SUBMISSION_MODULE = "submission"
 
 
 class RefuseAnswers:
@@ -127,27 +125,24 @@ def describe_exception(exc: BaseException) -> dict:
     return {"type": kind.__qualname__, "bases": bases, "message": _text(exc), "traceback": text}
 
 
-def define(
-    namespace: dict, cells: list[tuple[int, str]], wall_seconds: float, cpu_seconds: float
-) -> list[tuple[int, str, str]]:
+def define(notebook, cells: list[tuple[int, str]], wall_seconds: float, cpu_seconds: float):
     """Run the notebook's needed cells whole, in order, as a kernel would; return the failures.
 
-    See :func:`robolab.grading.loading.kernel.run_cells`: a cell that raises or does
-    not compile is recorded and the next cell still runs; the cell that uses up
-    the load budget (``cpu_seconds`` here, ``wall_seconds`` on the grader's clock,
+    ``notebook`` is the :class:`robolab.grading.loading.kernel.Notebook` the worker
+    entered: the notebook runs as ``__main__`` with the scratch folder as its
+    folder. See :func:`robolab.grading.loading.kernel.run_cells`: a cell that raises
+    or does not compile is recorded and the next cell still runs; the cell that uses
+    up the load budget (``cpu_seconds`` here, ``wall_seconds`` on the grader's clock,
     which sends ``SIGALRM``) is stopped and named.
     """
     import signal
 
     from robolab.grading.loading import kernel
 
-    kernel.new_namespace(SUBMISSION_MODULE, namespace)
     # The grader sends SIGALRM when the load's wall budget is spent on its clock (which leaves
     # out the time this worker waited for a CPU): it stops a cell, and is ignored between cells.
     signal.signal(signal.SIGALRM, signal.SIG_IGN)
-    return kernel.run_cells(
-        namespace, cells, wall_seconds, cpu_seconds, kernel.flush, wall_timer=False
-    )
+    return notebook.run(cells, wall_seconds, cpu_seconds, kernel.flush, wall_timer=False)
 
 
 def function_names(namespace: dict) -> list[str]:
@@ -262,11 +257,12 @@ def reap_children() -> None:
 
 def serve(request_fd: int, response_fd: int) -> int:
     """Answer define and call requests until the grader closes the request pipe."""
-    import types
+    from robolab.grading.loading import kernel
 
-    module = types.ModuleType(SUBMISSION_MODULE)
-    sys.modules[SUBMISSION_MODULE] = module
-    namespace = module.__dict__
+    # The notebook's module, as a kernel holds it: `__main__`, in the scratch folder
+    # (the working folder the sandbox left writable), which is first on sys.path.
+    notebook = kernel.Notebook(os.getcwd()).enter()
+    namespace = notebook.namespace
     while True:
         frame = read_frame(request_fd)
         if frame is None:
@@ -274,7 +270,7 @@ def serve(request_fd: int, response_fd: int) -> int:
         reap_children()
         request = pickle.loads(frame)  # noqa: S301 - from the grader, the trusted side
         if request[0] == "define":
-            problems = define(namespace, *request[1:])
+            problems = define(notebook, *request[1:])
             for stream in (sys.stdout, sys.stderr):
                 stream.flush()
             _send(response_fd, ("defined", function_names(namespace), problems))

@@ -67,7 +67,6 @@ def test_a_continuation_line_starting_with_percent_is_not_a_magic():
         ("\n%%time\n%matplotlib inline\ndef f():\n    return 1\n", True),
         ("%%timeit\ndef f():\n    return 1\n", False),
         ("%%bash\necho def f\n", False),
-        ("%%writefile f.py\ndef f():\n    return 1\n", False),
         ("%%html\n<b>def f()</b>\n", False),
     ],
 )
