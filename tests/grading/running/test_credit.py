@@ -1,12 +1,13 @@
 """Partial credit that follows an exercise's parts, and hints across exercises (pytest_plugin).
 
-Unit tests of :func:`robolab.grading.running.pytest_plugin.settle` on report records;
+Unit tests of :func:`robolab.grading.running.credit.settle` on report records;
 the mutation suite (``tests/labs/mutants``) checks the same through real grading.
 """
 
 from __future__ import annotations
 
-from robolab.grading.running.pytest_plugin import failure_message, settle
+from robolab.grading.running.credit import settle
+from robolab.grading.running.pytest_plugin import failure_message
 
 
 def _rec(test, outcome, exercise="f", requires=(), uses=(), message=""):
