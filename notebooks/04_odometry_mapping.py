@@ -166,6 +166,12 @@ def scan_endpoints(scan, pose, laser_offset):
     numpy.ndarray, shape (P, 2)
         ``(x, y)`` of each hit beam's endpoint, in the scan's beam order
         (``P`` = number of hit beams, possibly 0).
+
+    Raises
+    ------
+    ValueError
+        ``pose`` or ``laser_offset`` not three numbers, or a scan whose ranges and
+        angles differ in length.
     """
     # YOUR CODE HERE
     raise NotImplementedError
@@ -358,6 +364,12 @@ def occupancy_from_counts(hits, visits):
     numpy.ndarray of float, same shape
         Values in [0, 1], or -1 (:data:`robolab.maps.UNKNOWN`) for never-visited
         cells: ready for ``grid.with_data(...)``.
+
+    Raises
+    ------
+    ValueError
+        Negative or non-finite counts, ``hits`` and ``visits`` of different shapes,
+        or more hits than visits in a cell (a hit is also a visit).
     """
     # YOUR CODE HERE
     raise NotImplementedError
@@ -397,6 +409,12 @@ def clip_map(occupancy, threshold=0.5):
     -------
     numpy.ndarray of float, same shape
         Values in {-1, 0, 1}.
+
+    Raises
+    ------
+    ValueError
+        An occupancy outside [0, 1] other than -1 (unknown), a NaN, or a
+        ``threshold`` outside [0, 1].
     """
     # YOUR CODE HERE
     raise NotImplementedError
@@ -595,6 +613,13 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     -------
     numpy.ndarray of float, shape grid.shape
         The updated log-odds :math:`l_t`, a new array.
+
+    Raises
+    ------
+    ValueError
+        ``logodds`` not of ``grid.shape`` or not finite, ``pose`` not three numbers,
+        a missing key of ``inverse_sensor_model_params`` (or both ``alpha`` and
+        ``alpha_cells``), ``alpha``, ``alpha_cells`` or ``beta`` <= 0.
     """
     # YOUR CODE HERE
     raise NotImplementedError

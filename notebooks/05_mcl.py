@@ -372,6 +372,14 @@ def likelihood_field(grid, sigma_hit, max_dist):
         ``"likelihood"``: (H, W) :math:`p_{hit}` in 1/m;
         ``"resolution"``: float (m/cell); ``"origin"``: (3,) the grid's origin;
         ``"sigma_hit"``, ``"max_dist"``: floats. Plain data only.
+
+    Raises
+    ------
+    TypeError
+        ``grid`` is not an OccupancyGrid.
+    ValueError
+        ``sigma_hit <= 0`` (or so small that the Gaussian's peak overflows) or
+        ``max_dist <= 0``.
     """
     # YOUR CODE HERE
     raise NotImplementedError
@@ -462,6 +470,15 @@ def likelihood_field_model(scan, particles, field, params):
     numpy.ndarray, shape (N,)
         Log-likelihoods (natural log); 0 for every particle if no beam is valid.
         Use :func:`normalize_log_weights` to turn them into weights.
+
+    Raises
+    ------
+    TypeError
+        ``params`` is not a dict.
+    ValueError
+        A negative mixture weight ``params["z_hit"]`` or ``params["z_rand"]``, both
+        0, an unknown key in ``params``; ``particles`` not (N, 3); a scan whose
+        ranges and angles differ in length.
     """
     # YOUR CODE HERE
     raise NotImplementedError
@@ -791,6 +808,14 @@ def kld_sample_size(k, epsilon, z):
     -------
     int or numpy.ndarray of int
         Same shape as ``k``.
+
+    Raises
+    ------
+    TypeError
+        ``k`` is not an integer number of bins or ``z`` not a number.
+    ValueError
+        ``k < 1``, ``epsilon <= 0`` (or so small that ``n`` overflows an int64) or
+        a non-finite ``z``.
     """
     # YOUR CODE HERE
     raise NotImplementedError

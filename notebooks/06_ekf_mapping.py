@@ -449,6 +449,14 @@ def update_map(grid, state, scan, max_range=MAX_RANGE):
     -------
     numpy.ndarray, shape (H, W)
         The new map.
+
+    Raises
+    ------
+    TypeError
+        ``grid`` is an OccupancyGrid: the evidence map is an array of scores.
+    ValueError
+        ``grid`` not a finite (H, W) array, ``state`` not (3,), or a scan that is
+        empty or has NaN or negative ranges (as :func:`inverse_sensor_model`).
     """
     # YOUR CODE HERE
     raise NotImplementedError
@@ -529,6 +537,13 @@ def ekf_mapping_step(ekf, grid, speed, rotation_speed, scan, dt, max_range=MAX_R
     state : numpy.ndarray, shape (3,)
     covariance : numpy.ndarray, shape (3, 3)
     map : numpy.ndarray, shape (H, W)
+
+    Raises
+    ------
+    ValueError
+        A ``scan`` whose length is not the size of ``R``, or with NaN or negative
+        ranges; a non-finite ``speed`` or ``rotation_speed``; ``dt <= 0`` or
+        ``max_range <= 0``; a ``grid`` that is not a finite (H, W) array.
     """
     # YOUR CODE HERE
     raise NotImplementedError

@@ -140,6 +140,13 @@ def predict(mu, sigma, command, R, dt=DT, motion="unicycle"):
         New array; heading wrapped to ``[-pi, pi)``.
     sigma : numpy.ndarray, shape (3 + 2K, 3 + 2K)
         New array, symmetric.
+
+    Raises
+    ------
+    ValueError
+        ``mu`` not of length 3 + 2K (K >= 1), ``sigma`` not of shape (3 + 2K, 3 + 2K),
+        a ``command`` not of the motion's length (2 for the unicycle, 3 for odometry),
+        an unknown ``motion``, or a non-finite value.
     """
     # YOUR CODE HERE
     raise NotImplementedError
@@ -278,6 +285,13 @@ def correct(mu, sigma, observations, Qt):
     -------
     mu, sigma : numpy.ndarray
         New arrays; heading wrapped, ``sigma`` symmetric.
+
+    Raises
+    ------
+    ValueError
+        ``observations`` not of shape (k, 3), a landmark id outside ``0 <= id < K``,
+        ``Qt`` not positive definite, or shapes of ``mu`` and ``sigma`` that do not
+        fit.
     """
     # YOUR CODE HERE
     raise NotImplementedError
@@ -338,6 +352,12 @@ def add_landmark(mu, sigma, z, j, Qt):
     -------
     mu, sigma : numpy.ndarray
         New arrays with landmark ``j`` filled in.
+
+    Raises
+    ------
+    ValueError
+        A ``z`` not of length 2 or with a negative range, ``j`` outside
+        ``0 <= j < K``, or shapes of ``mu`` and ``sigma`` that do not fit.
     """
     # YOUR CODE HERE
     raise NotImplementedError

@@ -3,8 +3,8 @@
 Sub-commands (each lives in its own module; this file only parses arguments):
 
 - ``robolab data``: regenerate the bundled data with the simulator (robolab.sim).
-- ``robolab grade``, ``check``, ``solve``, ``release``, ``gradescope``: the
-  autograder (robolab.grading.commands).
+- ``robolab grade``, ``merge``, ``check``, ``solve``, ``release``, ``gradescope``,
+  ``similarity``: the autograder and the course's tools (robolab.grading.commands).
 
 Every user error (a bad argument, a path that cannot be written, a file that cannot
 be read) is one line ``robolab: error: ...`` on stderr and exit status 2.
@@ -89,6 +89,45 @@ def _visibility(text: str) -> tuple[str, str]:
     return exercise, value
 
 
+def _course_options(p: argparse.ArgumentParser) -> None:
+    """The course's options, shared by grade and merge (applied once, to every row)."""
+    p.add_argument("--roster", type=Path, help="CSV: id,name,email,match (see docs/instructor.md)")
+    p.add_argument(
+        "--export",
+        action="append",
+        default=[],
+        choices=["canvas", "moodle"],
+        help="also write OUT/<lms>.csv for Canvas or Moodle import (needs --roster; repeatable)",
+    )
+    p.add_argument("--assignment", help="the assignment's column name in exports (default: lab)")
+    p.add_argument(
+        "--overrides",
+        type=Path,
+        help="CSV: student,exercise,points,comment; kept as OUT/overrides.csv for regrades",
+    )
+    p.add_argument("--due", help="due date, ISO 8601 (2026-03-01T23:59:00+01:00)")
+    p.add_argument(
+        "--late-penalty",
+        type=_percent,
+        default=0.0,
+        metavar="PERCENT",
+        help="percent of the points lost per started day late",
+    )
+    p.add_argument(
+        "--late-cap",
+        type=_percent,
+        default=100.0,
+        metavar="PERCENT",
+        help="largest late penalty in percent (default 100)",
+    )
+    p.add_argument(
+        "--submitted-times",
+        type=Path,
+        metavar="CSV",
+        help="CSV: match,submitted (default: the files' modification times)",
+    )
+
+
 def _build_parser(instructor: bool = True) -> argparse.ArgumentParser:
     """The command line; the student edition (``instructor=False``) lists only its commands."""
     p = _Parser(
@@ -131,40 +170,34 @@ def _build_parser(instructor: bool = True) -> argparse.ArgumentParser:
         metavar="SECONDS",
         help="overall time limit per submission (default 600)",
     )
-    g.add_argument("--roster", type=Path, help="CSV: id,name,email,match (see docs/instructor.md)")
     g.add_argument(
-        "--export",
-        action="append",
-        default=[],
-        choices=["canvas", "moodle"],
-        help="also write OUT/<lms>.csv for Canvas or Moodle import (needs --roster; repeatable)",
+        "--shard",
+        metavar="K/N",
+        help="grade only the K-th of N slices of FILES (the same slices on every machine); "
+        "join the N output folders with robolab merge",
     )
-    g.add_argument("--assignment", help="the assignment's column name in exports (default: lab)")
-    g.add_argument(
-        "--overrides",
-        type=Path,
-        help="CSV: student,exercise,points,comment; kept as OUT/overrides.csv for regrades",
+    _course_options(g)
+
+    m = sub.add_parser(
+        "merge", help="merge the output folders of robolab grade --shard K/N into one"
     )
-    g.add_argument("--due", help="due date, ISO 8601 (2026-03-01T23:59:00+01:00)")
-    g.add_argument(
-        "--late-penalty",
-        type=_percent,
-        default=0.0,
-        metavar="PERCENT",
-        help="percent of the points lost per started day late",
+    m.add_argument("shards", nargs="+", type=Path, metavar="DIR", help="the N shard folders")
+    m.add_argument("--out", type=Path, required=True, help="folder for the merged outputs")
+    _course_options(m)
+
+    sim = sub.add_parser(
+        "similarity", help="compare submissions' exercise code, pair by pair (never runs it)"
     )
-    g.add_argument(
-        "--late-cap",
-        type=_percent,
-        default=100.0,
-        metavar="PERCENT",
-        help="largest late penalty in percent (default 100)",
+    sim.add_argument("notebooks", nargs="+", type=Path, help="submitted .ipynb files")
+    sim.add_argument(
+        "--out", type=Path, required=True, help="folder for similarity.csv and similarity.html"
     )
-    g.add_argument(
-        "--submitted-times",
-        type=Path,
-        metavar="CSV",
-        help="CSV: match,submitted (default: the files' modification times)",
+    sim.add_argument(
+        "--show",
+        type=_positive_int,
+        default=25,
+        metavar="N",
+        help="closest pairs shown side by side in similarity.html (default 25)",
     )
 
     c = sub.add_parser("check", help="run a notebook's visible checks (for students)")
@@ -214,10 +247,18 @@ def _dispatch(args) -> int:
         return commands.data(args.out, args.only)
     if args.command == "grade":
         options = ("lab", "out", "jobs", "timeout", "roster", "overrides", "assignment", "due")
-        options += ("late_penalty", "late_cap", "submitted_times")
+        options += ("late_penalty", "late_cap", "submitted_times", "shard")
         return commands.grade(
             args.submissions, exports=args.export, **{k: getattr(args, k) for k in options}
         )
+    if args.command == "merge":
+        options = ("out", "roster", "overrides", "assignment", "due")
+        options += ("late_penalty", "late_cap", "submitted_times")
+        return commands.merge(
+            args.shards, exports=args.export, **{k: getattr(args, k) for k in options}
+        )
+    if args.command == "similarity":
+        return commands.similarity(args.notebooks, out=args.out, shown=args.show)
     if args.command == "check":
         return commands.check(args.notebook)
     if args.command == "solve":

@@ -30,6 +30,8 @@ __all__ = [
 
 #: Cell value for unknown space.
 UNKNOWN = -1.0
+#: Cell indices stay below this in magnitude (int64 with room for arithmetic on them).
+_MAX_CELL_INDEX = 2.0**62
 
 _IMAGE_SUFFIXES = {".png", ".jpg", ".jpeg", ".pgm", ".ppm", ".bmp", ".tif", ".tiff"}
 
@@ -132,16 +134,34 @@ class OccupancyGrid:
         p = np.asarray(xy, dtype=float)
         d = p - self.origin[:2]
         c, s = np.cos(self.origin[2]), np.sin(self.origin[2])
-        u = (c * d[..., 0] + s * d[..., 1]) / self.resolution
-        v = (-s * d[..., 0] + c * d[..., 1]) / self.resolution
+        with np.errstate(invalid="ignore"):  # inf * 0 is NaN: such a point has no cell
+            u = (c * d[..., 0] + s * d[..., 1]) / self.resolution
+            v = (-s * d[..., 0] + c * d[..., 1]) / self.resolution
         return np.stack([u, v], -1)
 
     def world_to_cell(self, xy) -> np.ndarray:
         """Integer cell indices ``(..., 2)`` as ``(row, col)`` of world points ``(..., 2)``.
 
-        Indices may lie outside the grid; use :meth:`contains_cell` to test.
+        Indices may lie outside the grid; use :meth:`contains_cell` to test (or
+        :meth:`contains`, which also takes points that have no cell).
+
+        Raises
+        ------
+        ValueError
+            When a point is NaN or infinite, or so far away (beyond ``2**62`` cells)
+            that its index is no integer: it has no cell, and a cast would give a
+            meaningless ``-9223372036854775808``.
         """
-        uv = np.floor(self.world_to_map(xy)).astype(np.int64)
+        uv = np.floor(self.world_to_map(xy))
+        bad = ~(np.abs(uv) < _MAX_CELL_INDEX).all(-1)  # NaN compares False: caught too
+        if bad.any():
+            i = int(np.flatnonzero(bad.reshape(-1))[0])
+            point = tuple(float(v) for v in np.asarray(xy, dtype=float).reshape(-1, 2)[i])
+            raise ValueError(
+                f"xy: world point {point} (point {i}) has no cell: coordinates must be "
+                f"finite and within {_MAX_CELL_INDEX:.3g} cells of the map origin"
+            )
+        uv = uv.astype(np.int64)
         return np.stack([uv[..., 1], uv[..., 0]], -1)
 
     def cell_to_world(self, cells) -> np.ndarray:
@@ -163,8 +183,14 @@ class OccupancyGrid:
         )
 
     def contains(self, xy) -> np.ndarray:
-        """Boolean mask: which world points lie inside the grid."""
-        return self.contains_cell(self.world_to_cell(xy))
+        """Boolean mask: which world points lie inside the grid (NaN and inf do not)."""
+        uv = np.floor(self.world_to_map(xy))  # compared as floats: NaN is never inside
+        return (
+            (uv[..., 1] >= 0)
+            & (uv[..., 1] < self.shape[0])
+            & (uv[..., 0] >= 0)
+            & (uv[..., 0] < self.shape[1])
+        )
 
     def cell_centers(self) -> tuple[np.ndarray, np.ndarray]:
         """World x and y of every cell centre, each of shape ``(H, W)``."""
@@ -259,7 +285,8 @@ def _read_image(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
         or a palette with transparency), else None.
     """
     if not path.is_file():
-        raise MapFormatError(f"map image {str(path)!r} does not exist")
+        state = "is a folder, not an image" if path.is_dir() else "does not exist"
+        raise MapFormatError(f"map image {str(path)!r} {state}")
     try:
         with Image.open(path) as im:
             if im.mode in ("P", "PA"):
@@ -320,6 +347,8 @@ def load_map(
     path = Path(path)
     if path.suffix.lower() in (".yaml", ".yml"):
         return _load_map_server(path)
+    if not path.exists():
+        raise MapFormatError(f"map file {str(path)!r} does not exist")
     if path.suffix.lower() not in _IMAGE_SUFFIXES:
         raise MapFormatError(
             f"{str(path)!r}: unknown map format {path.suffix!r}; expected .yaml or an image"
@@ -330,7 +359,8 @@ def load_map(
 
 def _load_map_server(path: Path) -> OccupancyGrid:
     if not path.is_file():
-        raise MapFormatError(f"map file {str(path)!r} does not exist")
+        state = "is a folder, not a YAML file" if path.is_dir() else "does not exist"
+        raise MapFormatError(f"map file {str(path)!r} {state}")
     try:
         meta = yaml.safe_load(path.read_text(encoding="utf-8"))
     except (yaml.YAMLError, UnicodeDecodeError) as exc:

@@ -165,7 +165,8 @@ def pose_at(stamps, poses, t):
     -------
     numpy.ndarray, shape (3,) for a scalar ``t``, (K, 3) otherwise
         Interpolated poses, ``theta`` wrapped to ``[-pi, pi)``. At a recorded
-        stamp the recorded pose is returned.
+        stamp the recorded pose is returned; a track of one pose (``T = 1``) is
+        valid, and answers that pose at its stamp.
 
     Raises
     ------

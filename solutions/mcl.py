@@ -318,6 +318,14 @@ def likelihood_field(grid, sigma_hit, max_dist):
         ``"sigma_hit"``, ``"max_dist"``: floats. Plain data only; the two
         arrays are read-only (:func:`robolab.tablecache.freeze`), which lets
         :func:`likelihood_field_model` reuse its per-cell table from step to step.
+
+    Raises
+    ------
+    TypeError
+        ``grid`` is not an OccupancyGrid.
+    ValueError
+        ``sigma_hit <= 0`` (or so small that the Gaussian's peak overflows) or
+        ``max_dist <= 0``.
     """
     if not isinstance(grid, OccupancyGrid):
         raise TypeError(f"grid must be a robolab.maps.OccupancyGrid, got {type(grid).__name__}")
@@ -386,6 +394,15 @@ def likelihood_field_model(scan, particles, field, params):
     numpy.ndarray, shape (N,)
         Log-likelihoods (natural log); 0 for every particle if no beam is valid.
         Use :func:`normalize_log_weights` to turn them into weights.
+
+    Raises
+    ------
+    TypeError
+        ``params`` is not a dict.
+    ValueError
+        A negative mixture weight ``params["z_hit"]`` or ``params["z_rand"]``, both
+        0, an unknown key in ``params``; ``particles`` not (N, 3); a scan whose
+        ranges and angles differ in length.
     """
     p = as_poses("particles", particles)
     ranges, angles, _, rmax = _scan_arrays(scan)
@@ -566,6 +583,14 @@ def kld_sample_size(k, epsilon, z):
     -------
     int or numpy.ndarray of int
         Same shape as ``k``.
+
+    Raises
+    ------
+    TypeError
+        ``k`` is not an integer number of bins or ``z`` not a number.
+    ValueError
+        ``k < 1``, ``epsilon <= 0`` (or so small that ``n`` overflows an int64) or
+        a non-finite ``z``.
     """
     kk = np.asarray(k)
     if kk.dtype == bool or not np.issubdtype(kk.dtype, np.integer):

@@ -567,3 +567,38 @@ def test_closed_reader_refuses(written):
     bag.close()  # idempotent
     with pytest.raises(BagError, match="closed"):
         bag.odometry("/odom")
+
+
+def test_a_folder_that_is_not_a_ros2_bag_names_what_is_missing(tmp_path):
+    # Issue 25: rosbags' FileNotFoundError named the folder, not the missing metadata.yaml.
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(BagError, match="empty folder.*metadata.yaml"):
+        BagReader(empty)
+    storage = tmp_path / "storage_only"
+    storage.mkdir()
+    (storage / "run_0.db3").write_bytes(b"")
+    with pytest.raises(BagError, match="no metadata.yaml.*run_0.db3"):
+        BagReader(storage)
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "notes.txt").write_text("x")
+    with pytest.raises(BagError, match="no metadata.yaml.*no .db3 or .mcap"):
+        BagReader(other)
+
+
+@pytest.mark.parametrize(
+    "content", [b"", b"\xff\xfe random bytes" * 10, b"#ROSBAG V2.0\n\x00\x01", b"yaml: [\n"]
+)
+def test_a_file_that_is_not_a_bag_raises_one_line_bag_error(tmp_path, content):
+    path = tmp_path / "x.bag"
+    path.write_bytes(content)
+    with pytest.raises(BagError) as info:
+        BagReader(path)
+    assert str(path) in str(info.value) and "\n" not in str(info.value)
+    bad_yaml = tmp_path / "bad"
+    bad_yaml.mkdir()
+    (bad_yaml / "metadata.yaml").write_bytes(content or b"{{{")
+    with pytest.raises(BagError) as info:
+        BagReader(bad_yaml)
+    assert "\n" not in str(info.value)

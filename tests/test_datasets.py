@@ -511,3 +511,98 @@ def test_fetch_and_locate_reject_unknown_names(tmp_path, monkeypatch):
     with pytest.raises(ValueError, match="known"):
         locate("nope")
     assert locate("intel_lab", roots=[tmp_path / "empty"]) is None
+
+
+# -- files that are not what a reader expects (issue 25): one class each, every text reader ---
+
+
+def _scan_lines(n: int, stamp_format: str) -> str:
+    return "".join(
+        f"FLASER 3 1 2 3 0 0 0 0 0 0 {1134860000 + 0.1 * i:{stamp_format}} h 0\n" for i in range(n)
+    )
+
+
+def _text_file_cases(tmp_path: Path, content: str) -> dict[str, tuple[Path, str]]:
+    """The same bad inputs for any text reader: name -> (file, a word its error holds)."""
+    cases = {}
+    tmp_path.mkdir(parents=True, exist_ok=True)
+    binary = tmp_path / "binary.dat"
+    binary.write_bytes(bytes(range(256)) * 4)
+    cases["binary"] = (binary, "not UTF-8")
+    compressed = gzip.compress(content.encode())
+    truncated = tmp_path / "truncated.dat.gz"
+    truncated.write_bytes(compressed[: len(compressed) // 2])
+    cases["truncated gzip"] = (truncated, "truncated or corrupt")
+    corrupt = tmp_path / "corrupt.dat.gz"
+    corrupt.write_bytes(compressed[:10] + b"\0" * 50 + compressed[60:])
+    cases["corrupt gzip"] = (corrupt, "truncated or corrupt")
+    folder = tmp_path / "folder.dat"
+    folder.mkdir()
+    cases["folder"] = (folder, "is a folder")
+    return cases
+
+
+def test_carmen_files_that_are_not_logs_raise_carmen_errors_naming_the_file(tmp_path):
+    for name, (path, word) in _text_file_cases(tmp_path, _scan_lines(400, ".6f")).items():
+        with pytest.raises(CarmenError, match=word) as info:
+            read_carmen(path)
+        assert str(path) in str(info.value), name
+
+
+@pytest.mark.parametrize("content", ["", "\n\n", "# a comment\n# another\n", "PARAM a 1 h 0\n"])
+def test_a_carmen_log_without_messages_is_an_error_not_an_empty_log(tmp_path, content):
+    path = tmp_path / "empty.log"
+    path.write_text(content)
+    with pytest.raises(CarmenError, match="no CARMEN messages"):
+        read_carmen(path)
+
+
+def test_carmen_stamps_that_collapse_are_refused_and_full_precision_reads(tmp_path):
+    # %g prints 1.13486e+09: 406 scans over 40 s share one or two stamps.
+    collapsed = tmp_path / "g.log"
+    collapsed.write_text(_scan_lines(406, "g"))
+    with pytest.raises(CarmenError, match=r"406 FLASER messages have only \d distinct"):
+        read_carmen(collapsed)
+    full = tmp_path / "f.log"
+    full.write_text(_scan_lines(406, ".6f"))
+    stamps = read_carmen(full).laser().scans.stamps
+    np.testing.assert_allclose(np.diff(stamps), 0.1, atol=1e-5)
+    # Repeated stamps in pairs (two messages per stamp) are not a collapse.
+    pairs = tmp_path / "p.log"
+    pairs.write_text(
+        "".join(f"ODOM 0 0 0 0 0 0 {100 + i // 2:.6f} h 0\n" for i in range(10))
+        + _scan_lines(3, ".6f")
+    )
+    assert len(read_carmen(pairs).odometry.stamps) == 10
+
+
+def test_freiburg_and_mrclam_files_that_are_not_text_data_raise_their_errors(tmp_path):
+    for reader, error, files in (
+        (read_freiburg, FreiburgError, ("world.dat", "sensor_data.dat")),
+        (read_mrclam, MrclamError, ("Barcodes.dat", "Landmark_Groundtruth.dat")),
+    ):
+        for name, (bad, word) in _text_file_cases(tmp_path / reader.__name__, "1 2 3\n").items():
+            if bad.is_dir():
+                with pytest.raises(error, match="is a file|is a folder"):
+                    reader(bad.parent / "binary.dat")  # a file given as the data folder
+                continue
+            folder = tmp_path / f"{reader.__name__}-{name.replace(' ', '_')}"
+            folder.mkdir()
+            for f in files:
+                (folder / f).write_bytes(bad.read_bytes())
+            with pytest.raises(error, match=word):
+                reader(folder)
+
+
+@pytest.mark.parametrize("content", ["", "# only a comment\n"])
+def test_freiburg_files_without_data_are_errors_not_empty_runs(tmp_path, content):
+    folder = tmp_path / "fb"
+    folder.mkdir()
+    (folder / "world.dat").write_text(content)
+    (folder / "sensor_data.dat").write_text("ODOMETRY 0 0 0\n")
+    with pytest.raises(FreiburgError, match="no landmarks"):
+        read_freiburg(folder)
+    (folder / "world.dat").write_text("1 0 0\n")
+    (folder / "sensor_data.dat").write_text(content)
+    with pytest.raises(FreiburgError, match="no ODOMETRY"):
+        read_freiburg(folder)

@@ -369,3 +369,41 @@ def test_real_olin_map_loads():
     # a real room: walls, free floor and unknown outside, nothing else in trinary mode
     assert set(np.unique(g.data)) <= {UNKNOWN, 0.0, 1.0}
     assert g.occupied.sum() > 1000 and g.free.sum() > 10_000 and g.unknown.any()
+
+
+# -- points with no cell (issue 25) ------------------------------------------------------------
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf, 1e30, -1e30])
+def test_world_to_cell_refuses_points_without_a_cell_and_contains_says_outside(bad):
+    # The int64 cast gave -9223372036854775808 for all of these.
+    grid = OccupancyGrid(np.zeros((4, 5)), 0.5, (1.0, -2.0, 0.3))
+    points = np.array([[1.2, -1.9], [bad, 0.0], [0.0, bad]])
+    with pytest.raises(ValueError, match=r"xy: world point .* \(point 1\) has no cell"):
+        grid.world_to_cell(points)
+    with pytest.raises(ValueError, match="has no cell"):
+        grid.world_to_cell(points[2])
+    np.testing.assert_array_equal(grid.contains(points), [True, False, False])
+    # Finite points far outside still get their (outside) index, as before.
+    far = grid.world_to_cell([[1e6, 1e6]])
+    assert not grid.contains_cell(far).any() and far.dtype == np.int64
+
+
+def test_contains_agrees_with_world_to_cell_on_finite_points():
+    rng = np.random.default_rng(3)
+    grid = OccupancyGrid(np.zeros((6, 7)), 0.25, (-0.5, 0.25, 0.7))
+    points = rng.uniform(-3, 3, size=(2000, 2))
+    np.testing.assert_array_equal(
+        grid.contains(points), grid.contains_cell(grid.world_to_cell(points))
+    )
+
+
+def test_load_map_names_a_folder_and_a_missing_file(tmp_path):
+    (tmp_path / "map.png").mkdir()
+    with pytest.raises(MapFormatError, match="is a folder"):
+        load_map(tmp_path / "map.png")
+    with pytest.raises(MapFormatError, match="does not exist"):
+        load_map(tmp_path / "nothing")
+    (tmp_path / "map.yaml").mkdir()
+    with pytest.raises(MapFormatError, match="is a folder"):
+        load_map(tmp_path / "map.yaml")

@@ -333,3 +333,28 @@ def test_convergence_time_is_the_start_of_the_last_run_below_tolerance():
     assert convergence_time(with_nan, 0.5) == 2.0  # a NaN error is not "locked on"
     with pytest.raises(ValueError):
         convergence_time(run, 0.0)
+
+
+def test_graph_slam_figures_are_titled_and_labelled():
+    """Lab 09: the graph, the sparsity image and the objective history draw on labelled axes."""
+    import scipy.sparse
+
+    from robolab.datasets import PoseGraph
+    from robolab.plotting.graph_slam import plot_objective_history, plot_pose_graph, plot_sparsity
+
+    g = PoseGraph(
+        [[0, 0, 0], [1, 0, 0], [1, 1, 1.5]], [[0, 1], [1, 2], [0, 2]], np.zeros((3, 3)),
+        np.broadcast_to(np.eye(3), (3, 3, 3)), landmarks=[[2.0, 2.0]], landmark_edges=[[2, 0]],
+        landmark_measurements=[[1.0, 0.0]], landmark_information=[np.eye(2)],
+    )
+    ax = plot_pose_graph(g)
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels == ["loop closures (1)", "landmark edges (1)", "landmarks (1)", "poses (3)"]
+    assert ax.get_title() and ax.get_xlabel() == "x [m]"
+    H = scipy.sparse.csr_matrix(np.diag([1.0, 0.0, 2.0]))
+    ax = plot_sparsity(H, n_poses=0)
+    image = ax.get_images()[0].get_array()
+    np.testing.assert_array_equal(np.asarray(image, dtype=bool), np.diag([True, False, True]))
+    ax = plot_objective_history({"run": {"objective": np.array([100.0, 10.0, 9.0])}})
+    assert ax.get_yscale() == "log" and ax.get_ylabel()
+    plt.close("all")

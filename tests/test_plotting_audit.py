@@ -131,3 +131,33 @@ def test_a_semicolon_ends_the_display_like_jupyter(cell, quiet):
     from robolab.plotting.audit import _quiet
 
     assert _quiet(cell) is quiet
+
+
+@pytest.mark.slow
+def test_the_audit_sees_figures_under_the_inline_backend(tmp_path):
+    """In Jupyter with its default inline backend (no MPLBACKEND), figures are audited
+    before the backend shows and closes them; printed numpy reprs are caught too."""
+    import os
+
+    import nbformat
+    from nbclient import NotebookClient
+
+    nb = nbformat.v4.new_notebook()
+    nb.cells = [
+        nbformat.v4.new_code_cell("%load_ext robolab.plotting.audit"),
+        nbformat.v4.new_code_cell(
+            "import matplotlib.pyplot as plt, numpy as np\nfig, ax = plt.subplots()\n"
+            "ax.plot([1, 2], [3, 4]);\nprint('extent', (np.float64(0.5), 1.0))"
+        ),
+        nbformat.v4.new_code_cell("from robolab.plotting import audit\naudit.report()"),
+    ]
+    env = {k: v for k, v in os.environ.items() if k != "MPLBACKEND"}
+    client = NotebookClient(nb, timeout=120, kernel_name="python3", allow_errors=True,
+                            resources={"metadata": {"path": str(tmp_path)}})
+    client.km = client.create_kernel_manager()
+    client.start_new_kernel(env=env)
+    client.start_new_kernel_client()
+    client.execute(cleanup_kc=True)
+    error = nb.cells[-1].outputs[-1]
+    assert error["output_type"] == "error", nb.cells[-1].outputs
+    assert "no title" in error["evalue"] and "np.float64" in error["evalue"]

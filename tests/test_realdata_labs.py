@@ -303,3 +303,27 @@ def test_ekf_slam_maps_the_real_freiburg_landmarks(freiburg):
     aligned = transform_points(lm, align_points(lm, freiburg.landmarks))
     rmse = float(np.sqrt(np.nanmean(np.sum((aligned - freiburg.landmarks) ** 2, axis=1))))
     assert rmse < 0.06
+
+
+# -- lab 09: graph SLAM on Intel and M3500 ----------------------------------------------------
+def test_optimize_real_graphs_reaches_the_gtsam_anchor():
+    """The reference reaches GTSAM 4.3's objectives within 0.1 %, in at most one more iteration."""
+    from robolab.evaluation import graph_objective
+    from robolab.realdata.graph_slam import GTSAM_ANCHOR, optimize_real_graphs
+    from solutions.graph_slam import optimize_graph
+
+    results = optimize_real_graphs(optimize_graph, _need("graph_slam"))
+    assert set(results) == set(GTSAM_ANCHOR)
+    for name, r in results.items():
+        f0, f_final, iterations = GTSAM_ANCHOR[name]
+        assert graph_objective(r["initial"]) == pytest.approx(f0, rel=5e-4), name
+        assert graph_objective(r["optimized"]) == pytest.approx(f_final, rel=1e-3), name
+        assert len(r["history"]["step"]) <= iterations + 1, name
+        assert r["cpu_seconds"] > 0
+
+
+def test_optimize_real_graphs_without_the_data_set_says_so(tmp_path, monkeypatch):
+    import robolab.realdata.graph_slam as rg
+
+    monkeypatch.setattr(rg, "locate", lambda name: None)
+    assert rg.optimize_real_graphs(lambda g: (g, {})) is None

@@ -431,6 +431,26 @@ def test_make_data_regenerates_small_sets_identically(tmp_path):
         assert (tmp_path / name).read_bytes() == _bundled(name).read_bytes(), name
 
 
+def test_the_bundled_graph_regenerates_identically_and_its_optimum_is_near_the_truth(tmp_path):
+    """data/graph_slam.g2o (lab 09) is simulate_graph(seed=0); Gauss-Newton recovers the truth."""
+    from robolab.datasets import read_g2o
+    from robolab.evaluation import absolute_trajectory_error, graph_objective
+    from solutions.graph_slam import optimize_graph
+
+    sim.make_data(tmp_path, only=["graph_slam"], progress=False)
+    for name in ("graph_slam.g2o", "graph_slam_truth.npz"):
+        assert (tmp_path / name).read_bytes() == _bundled(name).read_bytes(), name
+    graph = read_g2o(tmp_path / "graph_slam.g2o")
+    truth = np.load(tmp_path / "graph_slam_truth.npz")
+    assert absolute_trajectory_error(graph.poses, truth["poses"])["rmse"] > 0.5  # the guess drifts
+    optimized, _ = optimize_graph(graph)
+    assert absolute_trajectory_error(optimized.poses, truth["poses"])["rmse"] < 0.1
+    assert np.abs(optimized.landmarks - truth["landmarks"]).max() < 0.5
+    # chi-square: F at the optimum is about residuals - free parameters (noise model right)
+    dof = 3 * len(graph.edges) + 2 * len(graph.landmark_edges) - (graph.state_size - 3)
+    assert abs(graph_objective(optimized) - dof) < 4 * np.sqrt(2 * dof)
+
+
 def test_make_data_unknown_name_raises(tmp_path):
     with pytest.raises(ValueError, match="valid names: office, mapping, localization, ekf_world"):
         sim.make_data(tmp_path, only=["office", "nope"])

@@ -24,6 +24,25 @@ from robolab.bag.poses import PoseTrack
 from robolab.bag.scans import Scans
 from robolab.bag.tf import TfTree, _frame
 
+#: The first line of every ROS1 bag file.
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+
+
+def _check_ros2_folder(path: Path) -> None:
+    """BagError naming what is missing when folder ``path`` is not a ROS2 bag."""
+    if (path / "metadata.yaml").is_file():
+        return
+    inside = sorted(p.name for p in path.iterdir())
+    if not inside:
+        raise BagError(f"{path}: is an empty folder, not a ROS2 bag (no metadata.yaml)")
+    storage = [n for n in inside if n.endswith((".db3", ".mcap"))]
+    hint = (
+        f"; it holds {', '.join(storage[:3])} (`ros2 bag reindex` rebuilds the metadata)"
+        if storage
+        else f"; it holds {len(inside)} other file(s) and no .db3 or .mcap"
+    )
+    raise BagError(f"{path}: is a folder but not a ROS2 bag: it has no metadata.yaml{hint}")
+
 
 class BagReader:
     """Read a ROS1 ``.bag`` file or a ROS2 bag (folder, ``.db3`` or ``.mcap``).
@@ -41,7 +60,8 @@ class BagReader:
     FileNotFoundError
         If ``path`` does not exist.
     BagError
-        If the file is not a readable bag (truncated, corrupt header, unknown format).
+        If the file is not a readable bag (truncated, corrupt header, unknown format),
+        or a folder is not a ROS2 bag (empty, or without its ``metadata.yaml``).
 
     Examples
     --------
@@ -56,6 +76,8 @@ class BagReader:
         self.progress = bool(progress)
         if not self.path.exists():
             raise FileNotFoundError(f"bag not found: {self.path}")
+        if self.path.is_dir():
+            _check_ros2_folder(self.path)
         from rosbags.typesys import Stores, get_typestore
 
         from robolab.bag.ros1 import any_reader_class
@@ -107,11 +129,15 @@ class BagReader:
             raise
         except Exception as exc:
             hint = ""
-            if self.path.is_file() and self.path.suffix != ".bag":
+            if self.path.is_file():
                 with open(self.path, "rb") as fh:
-                    if fh.read(13) == b"#ROSBAG V2.0\n":
-                        hint = " (this is a ROS1 bag: its name must end in .bag)"
-            raise BagError(f"{self.path}: {what}: {type(exc).__name__}: {exc}{hint}") from exc
+                    ros1 = fh.read(13) == ROS1_MAGIC
+                if ros1 and self.path.suffix != ".bag":
+                    hint = " (this is a ROS1 bag: its name must end in .bag)"
+                elif not ros1 and self.path.suffix == ".bag":
+                    hint = f" (not a ROS1 bag: it does not start with {ROS1_MAGIC!r})"
+            text = " ".join(str(exc).split())  # one line, whatever the parser printed
+            raise BagError(f"{self.path}: {what}: {type(exc).__name__}: {text}{hint}") from exc
 
     def _check_open(self):
         if self._reader is None:

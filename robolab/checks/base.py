@@ -78,3 +78,56 @@ def expect_raises(what: str, error: type[BaseException], func, *args, **kwargs) 
             f"{what}: expected {error.__name__}, got {type(exc).__name__}: {exc}"
         ) from None
     raise CheckFailed(f"{what}: expected {error.__name__}, but the function returned normally")
+
+
+def where_wrong(z, got, expected, marks: dict, normaliser: str) -> str | None:
+    """None when ``got`` matches ``expected`` at every reading ``z``; else where it differs.
+
+    A density wrong only at single readings (``marks``: label -> reading, such as
+    the ends of its support and z*) is named there; one off by the same factor at
+    every reading has a wrong normaliser (``normaliser`` says which); anything else
+    is shown at its first wrong readings.
+    """
+    bad = ~np.isclose(got, expected, rtol=1e-9, atol=1e-300)
+    if not bad.any():
+        return None
+
+    def at(i):
+        return f"at z = {z[i]:.6g} got {got[i]:.6g}, expected {expected[i]:.6g}"
+
+    wrong = np.flatnonzero(bad)
+    labels = {i: [k for k, v in marks.items() if z[i] == v] for i in wrong}
+    if all(labels.values()):
+        where = "; ".join(f"{' = '.join(labels[i])}: {at(i)}" for i in wrong)
+        return (
+            f"wrong only at single readings ({where}), right everywhere else: look at how the "
+            "support's ends are included (<= or <), not at the normaliser"
+        )
+    positive = expected > 1e-300
+    ratio = got[positive] / expected[positive]
+    if positive.any() and bad[positive].all() and np.ptp(ratio) <= 1e-9 * abs(ratio[0]):
+        return f"off by the same factor {ratio[0]:.6g} at every reading: {normaliser}"
+    shown = "; ".join(at(i) for i in wrong[:3])
+    return f"wrong at {wrong.size} of {z.size} readings, e.g. {shown}"
+
+
+def angle_error(got, expected, atol: float) -> str | None:
+    """None when the angles ``got`` and ``expected`` agree modulo 2 pi within ``atol``.
+
+    Otherwise a sentence naming the largest error (not the angle) and where it is,
+    with the angle got and the angle expected there: printing the error as the
+    result would make a student read their error as what their function returned.
+    """
+    g = np.asarray(got, dtype=float)
+    e = np.broadcast_to(np.asarray(expected, dtype=float), g.shape)
+    err = np.abs((g - e + np.pi) % (2 * np.pi) - np.pi)
+    err = np.where(np.isnan(err), np.inf, err)
+    if err.size == 0 or err.max() <= atol:
+        return None
+    i = np.unravel_index(int(np.argmax(err)), err.shape)
+    where = f" at index {i[0] if len(i) == 1 else tuple(int(k) for k in i)}" if i else ""
+    size = f"reaches {err[i]:.3g} rad" if np.isfinite(err[i]) else "is not a number"
+    return (
+        f"the angle error {size}{where} (tolerance {atol:g}): got "
+        f"{g[i]:.6g} rad, expected {e[i]:.6g} rad (modulo 2 pi)"
+    )

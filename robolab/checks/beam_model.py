@@ -11,7 +11,14 @@ import math
 
 import numpy as np
 
-from robolab.checks.base import CheckFailed, check, expect_close, expect_raises, expect_shape
+from robolab.checks.base import (
+    CheckFailed,
+    check,
+    expect_close,
+    expect_raises,
+    expect_shape,
+    where_wrong,
+)
 
 __all__ = [
     "check_p_hit",
@@ -34,17 +41,9 @@ PARAMS = {
 }
 
 
-def _integral(f, a, b, n=20001):
-    z = np.linspace(a, b, n)
-    return float(np.trapezoid(np.asarray(f(z), dtype=float), z))
-
-
-def _expect_integral(name, total, expected=1.0, tol=1e-4, hint=""):
+def _expect_integral(name, total, expected=1.0, tol=1e-4):
     if not abs(total - expected) < tol:
-        raise CheckFailed(
-            f"{name} integrates to {total:.6f}, expected {expected:g}"
-            + (f": {hint}" if hint else "")
-        )
+        raise CheckFailed(f"{name} integrates to {total:.6f}, expected {expected:g}")
 
 
 @check
@@ -65,10 +64,22 @@ def check_p_hit(p_hit):
     )
     if got[0] != 0 or got[3] != 0:
         raise CheckFailed("p_hit must be 0 for readings outside [0, z_max]")
+    # z* = 0.2 near the lower end: the Gaussian is cut at 0 and eta restores the lost mass
+    z = np.linspace(0.0, 5.0, 20001)
+    f = expect_shape("p_hit(z (20001,), z_star=0.2, ...)", p_hit(z, 0.2, 5.0, 0.5), z.shape)
+    eta = 1.0 / (0.5 * (math.erf(4.8 / 0.5 / math.sqrt(2)) - math.erf(-0.2 / 0.5 / math.sqrt(2))))
+    expected = eta * np.exp(-0.5 * ((z - 0.2) / 0.5) ** 2) / (0.5 * math.sqrt(2 * math.pi))
+    wrong = where_wrong(
+        z,
+        f,
+        expected,
+        {"0": 0.0, "z_max": 5.0},
+        "the Gaussian is cut at 0, so eta must restore the lost mass (use the normal CDF)",
+    )
+    if wrong is not None:
+        raise CheckFailed(f"p_hit(z, z_star=0.2, z_max=5, sigma_hit=0.5) on [0, 5]: {wrong}")
     _expect_integral(
-        "p_hit(z, z_star=0.2, z_max=5, sigma_hit=0.5) over [0, 5]",
-        _integral(lambda z: p_hit(z, 0.2, 5.0, 0.5), 0.0, 5.0),
-        hint="the Gaussian is cut at 0, so eta must restore the lost mass (use the normal CDF)",
+        "p_hit(z, z_star=0.2, z_max=5, sigma_hit=0.5) over [0, 5]", float(np.trapezoid(f, z))
     )
 
 
@@ -87,10 +98,19 @@ def check_p_short(p_short):
     )
     if got[1] != 0 or got[2] != 0:
         raise CheckFailed("p_short must be 0 for readings beyond z_star (or negative)")
+    z = np.linspace(0.0, 3.0, 20001)
+    f = expect_shape("p_short(z (20001,), z_star=3, ...)", p_short(z, 3.0, 0.8), z.shape)
+    wrong = where_wrong(
+        z,
+        f,
+        0.8 * np.exp(-0.8 * z) / (1.0 - math.exp(-2.4)),
+        {"0": 0.0, "z_star": 3.0},
+        "eta = 1 / (1 - exp(-lambda_short * z_star))",
+    )
+    if wrong is not None:
+        raise CheckFailed(f"p_short(z, z_star=3, lambda_short=0.8) on [0, 3]: {wrong}")
     _expect_integral(
-        "p_short(z, z_star=3, lambda_short=0.8) over [0, 3]",
-        _integral(lambda z: p_short(z, 3.0, 0.8), 0.0, 3.0),
-        hint="eta = 1 / (1 - exp(-lambda_short * z_star))",
+        "p_short(z, z_star=3, lambda_short=0.8) over [0, 3]", float(np.trapezoid(f, z))
     )
     at_zero = np.asarray(p_short(np.array([0.0, 1.0]), 0.0, 0.5), dtype=float)
     if not np.all(np.isfinite(at_zero)):

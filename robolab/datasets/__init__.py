@@ -12,6 +12,9 @@ module        reads
               as the Intel Research Lab's carry the corrected laser poses)
 ``freiburg``  the Freiburg Robot Mapping course format, ``world.dat`` and
               ``sensor_data.dat`` (:func:`read_freiburg`)
+``g2o``       pose graphs in the g2o text format (``VERTEX_SE2``, ``VERTEX_XY``,
+              ``EDGE_SE2``, ``EDGE_SE2_XY``) as a :class:`PoseGraph` (:func:`read_g2o`,
+              :func:`write_g2o`)
 ``mrclam``    UTIAS MRCLAM ``.dat`` files, barcodes mapped to landmarks, streams
               aligned in time (:func:`read_mrclam`)
 ``rosbag``    ROS bags with configurable topics and message types (Odometry,
@@ -24,6 +27,7 @@ module        reads
 from robolab.datasets.carmen import CarmenError, CarmenLaser, CarmenLog, read_carmen
 from robolab.datasets.fetch import REGISTRY, DataSetUnavailable, fetch, locate
 from robolab.datasets.freiburg import FreiburgData, FreiburgError, read_freiburg
+from robolab.datasets.g2o import G2oError, PoseGraph, read_g2o, write_g2o
 from robolab.datasets.mrclam import MrclamError, MrclamRun, read_mrclam
 from robolab.datasets.rosbag import Recording, read_recording, read_track
 
@@ -35,6 +39,10 @@ __all__ = [
     "FreiburgData",
     "FreiburgError",
     "read_freiburg",
+    "G2oError",
+    "PoseGraph",
+    "read_g2o",
+    "write_g2o",
     "MrclamError",
     "MrclamRun",
     "read_mrclam",

@@ -23,20 +23,21 @@ n r_1 .. r_n m e_1 .. e_m timestamp host logger_timestamp``
 ``PARAM name value host timestamp``
     A parameter (kept as text).
 
-Other lines (``#`` comments, ``NEFF``, ``SYNC``, ...) are skipped. Times are the
+Other lines (``#`` comments, ``NEFF``, ``SYNC``, ...) are skipped; a file with no
+message at all is an error, as are stamps that collapse (see :func:`read_carmen`). Times are the
 ``timestamp`` field (seconds), not the logger's; messages keep the log's order (the
 Intel log has four scans whose stamps step back).
 """
 
 from __future__ import annotations
 
-import gzip
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from robolab.bag import PoseTrack, Scans
+from robolab.datasets.textlog import text_lines
 
 __all__ = ["CarmenError", "CarmenLaser", "CarmenLog", "read_carmen"]
 
@@ -113,10 +114,15 @@ class CarmenLog:
         return self.lasers[name]
 
 
-def _open_text(path: Path):
-    with open(path, "rb") as fh:
-        gz = fh.read(2) == b"\x1f\x8b"
-    return gzip.open(path, "rt", encoding="utf-8") if gz else open(path, encoding="utf-8")
+def _check_stamps(path: Path, what: str, stamps: np.ndarray) -> None:
+    """CarmenError when many messages share few stamps (printed with too few digits)."""
+    distinct = np.unique(stamps).size
+    if stamps.size >= 3 and 2 * distinct < stamps.size:
+        raise CarmenError(
+            f"{path}: {stamps.size} {what} messages have only {distinct} distinct timestamps "
+            f"(e.g. {float(stamps[0])}): the log's stamps were printed with too few digits "
+            "(as %g does); write them with microseconds (%.6f) to read this log"
+        )
 
 
 def _numbers(path: Path, lineno: int, tokens: list[str], what: str) -> np.ndarray:
@@ -212,32 +218,45 @@ def read_carmen(path, *, start_angle=None, angular_resolution=None, max_range=No
     ------
     FileNotFoundError
     CarmenError
-        A line with too few or non-numeric fields (the message names the line).
+        A line with too few or non-numeric fields (the message names the line); bytes
+        that are not text; a truncated or corrupt ``.gz``; a file without any message
+        (empty, or comments only); timestamps that collapse (fewer distinct stamps
+        than half the messages of a kind: printed with ``%g``, ``1.13486e+09``, every
+        stamp of a run is one of two or three values).
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"CARMEN log not found: {path}")
     odom, truth, params = [], [], {}
     lasers: dict[str, list] = {}
-    with _open_text(path) as fh:
-        for lineno, line in enumerate(fh, 1):
-            tok = line.split()
-            if not tok:
-                continue
-            name, rest = tok[0], tok[1:]
-            if name == "ODOM":
-                _need(path, lineno, rest, 7, name)
-                odom.append(_numbers(path, lineno, rest[:7], name))
-            elif name == "TRUEPOS":
-                _need(path, lineno, rest, 7, name)
-                truth.append(_numbers(path, lineno, rest[:7], name))
-            elif name == "PARAM" and len(rest) >= 2:
-                params[rest[0]] = rest[1]
-            elif name in _OLD_LASERS:
-                lasers.setdefault(name, []).append(_old_laser(path, lineno, rest, name))
-            elif name in _NEW_LASERS or name in _RAW_LASERS:
-                row = _new_laser(path, lineno, rest, name, name in _NEW_LASERS)
-                lasers.setdefault(name, []).append(row)
+    lines = 0
+    for lineno, line in text_lines(path, CarmenError, "CARMEN log"):
+        lines = lineno
+        tok = line.split()
+        if not tok:
+            continue
+        name, rest = tok[0], tok[1:]
+        if name == "ODOM":
+            _need(path, lineno, rest, 7, name)
+            odom.append(_numbers(path, lineno, rest[:7], name))
+        elif name == "TRUEPOS":
+            _need(path, lineno, rest, 7, name)
+            truth.append(_numbers(path, lineno, rest[:7], name))
+        elif name == "PARAM" and len(rest) >= 2:
+            params[rest[0]] = rest[1]
+        elif name in _OLD_LASERS:
+            lasers.setdefault(name, []).append(_old_laser(path, lineno, rest, name))
+        elif name in _NEW_LASERS or name in _RAW_LASERS:
+            row = _new_laser(path, lineno, rest, name, name in _NEW_LASERS)
+            lasers.setdefault(name, []).append(row)
+    if not (odom or truth or lasers):
+        raise CarmenError(
+            f"{path}: no CARMEN messages (ODOM, TRUEPOS, FLASER, ROBOTLASER1, ...) in "
+            + ("an empty file" if lines == 0 else f"its {lines} line(s)")
+        )
+    for what, rows, at in (("ODOM", odom, 6), ("TRUEPOS", truth, 6)):
+        if rows:
+            _check_stamps(path, what, np.array([r[at] for r in rows]))
+    for name, rows in lasers.items():
+        _check_stamps(path, name, np.array([r["t"] for r in rows]))
     odometry = velocities = None
     if odom:
         a = np.array(odom)

@@ -49,6 +49,28 @@ REGISTRY: dict[str, dict[str, RemoteFile]] = {
             "4553824603857e94e3e5ccc3c93379a45131b7b5faae1c6929dfcb0f3a6308e7",
         ),
     },
+    "graph_slam": {
+        "simulation-pose-pose.g2o": RemoteFile(
+            f"{_RAW}/BazzaCipher/robotics-rs/b39d11dff1a8bde0f5f7bb876c6189357823cd8e"
+            "/dataset/g2o/simulation-pose-pose.g2o",
+            "a8e73874e3a94c3a6f9da0e4ceccb842d7537c01612def2f974f18c8afdeed84",
+        ),
+        "simulation-pose-landmark.g2o": RemoteFile(
+            f"{_RAW}/BazzaCipher/robotics-rs/b39d11dff1a8bde0f5f7bb876c6189357823cd8e"
+            "/dataset/g2o/simulation-pose-landmark.g2o",
+            "8bb0a1f2824713758a7eaf50a8229dbd9e08cc57562f295bd1d47f97f97c775b",
+        ),
+        "intel.g2o": RemoteFile(
+            f"{_RAW}/BazzaCipher/robotics-rs/b39d11dff1a8bde0f5f7bb876c6189357823cd8e"
+            "/dataset/g2o/intel.g2o",
+            "a6c086e1587d7b403effa0f2b755d4eff4a71eb705fefce0220e2f9aca1a14a2",
+        ),
+        "input_M3500_g2o.g2o": RemoteFile(
+            f"{_RAW}/BazzaCipher/robotics-rs/b39d11dff1a8bde0f5f7bb876c6189357823cd8e"
+            "/dataset/g2o/input_M3500_g2o.g2o",
+            "1883593980e602b11bd0ba95799c969e59ee8a6892bdb2a3a48f495459efe9d8",
+        ),
+    },
     "olin_ac109_1": {
         "ac109_1_demo.bag": RemoteFile(
             f"{_RAW}/anushadatar/robot_localization/4b4253fb00d361a740ff41a8da0ba7a3c6fbd9de"

@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from robolab.datasets.textlog import data_folder, text_lines
+
 __all__ = ["FreiburgError", "FreiburgData", "read_world", "read_sensor_data", "read_freiburg"]
 
 
@@ -69,13 +71,10 @@ class FreiburgData:
 
 
 def _rows(path: Path):
-    if not path.is_file():
-        raise FileNotFoundError(f"Freiburg data file not found: {path}")
-    with open(path, encoding="utf-8") as fh:
-        for lineno, line in enumerate(fh, 1):
-            tok = line.split()
-            if tok and not tok[0].startswith("#"):
-                yield lineno, tok
+    for lineno, line in text_lines(path, FreiburgError, "Freiburg data"):
+        tok = line.split()
+        if tok and not tok[0].startswith("#"):
+            yield lineno, tok
 
 
 def _floats(path, lineno, tok, n, what):
@@ -104,6 +103,8 @@ def read_world(path) -> tuple[np.ndarray, np.ndarray]:
         i, x, y = _floats(path, lineno, tok, 3, "a landmark")
         ids.append(_landmark_id(path, lineno, i))
         xy.append((x, y))
+    if not ids:
+        raise FreiburgError(f"{path}: no landmarks (the file is empty or holds comments only)")
     if len(set(ids)) != len(ids):
         raise FreiburgError(f"{path}: landmark ids repeat: {sorted(ids)}")
     return np.array(ids, dtype=np.int64), np.array(xy, dtype=float).reshape(-1, 2)
@@ -127,6 +128,8 @@ def read_sensor_data(path) -> tuple[np.ndarray, list]:
             observations[-1].append((r, b, _landmark_id(path, lineno, j)))
         else:
             raise FreiburgError(f"{path}:{lineno}: unknown line type {kind!r}")
+    if not odometry:
+        raise FreiburgError(f"{path}: no ODOMETRY lines (the file is empty or holds comments only)")
     obs = [np.array(o, dtype=float).reshape(-1, 3) for o in observations]
     return np.array(odometry, dtype=float).reshape(-1, 3), obs
 
@@ -138,10 +141,13 @@ def read_freiburg(folder=None, *, world=None, sensor_data=None) -> FreiburgData:
     ------
     FileNotFoundError
     FreiburgError
-        A malformed line, or an observed id that ``world.dat`` lacks.
+        A malformed line, an observed id that ``world.dat`` lacks, a file that is not
+        text or holds no data (empty, comments only), a folder that is a file.
     """
     if folder is None and (world is None or sensor_data is None):
         raise TypeError("give folder, or both world and sensor_data")
+    if folder is not None:
+        folder = data_folder(folder, FreiburgError, "Freiburg data")
     world = Path(folder) / "world.dat" if world is None else Path(world)
     sensor_data = Path(folder) / "sensor_data.dat" if sensor_data is None else Path(sensor_data)
     ids, xy = read_world(world)

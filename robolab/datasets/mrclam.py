@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from robolab.bag import PoseTrack
+from robolab.datasets.textlog import data_folder, text_lines
 from robolab.validation import check_count, check_positive
 
 __all__ = ["MrclamError", "MrclamRun", "read_dat", "read_mrclam", "DT"]
@@ -48,22 +49,17 @@ class MrclamError(ValueError):
 def read_dat(path, columns: int) -> np.ndarray:
     """A ``.dat`` file as a float ``(N, columns)`` array (``#`` comment lines skipped)."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"MRCLAM file not found: {path}")
     rows = []
-    with open(path, encoding="utf-8") as fh:
-        for lineno, line in enumerate(fh, 1):
-            tok = line.split("#", 1)[0].split()
-            if not tok:
-                continue
-            if len(tok) != columns:
-                raise MrclamError(
-                    f"{path}:{lineno}: expected {columns} columns, got {len(tok)}: {tok}"
-                )
-            try:
-                rows.append([float(v) for v in tok])
-            except ValueError as exc:
-                raise MrclamError(f"{path}:{lineno}: {exc}") from exc
+    for lineno, line in text_lines(path, MrclamError, "MRCLAM data"):
+        tok = line.split("#", 1)[0].split()
+        if not tok:
+            continue
+        if len(tok) != columns:
+            raise MrclamError(f"{path}:{lineno}: expected {columns} columns, got {len(tok)}: {tok}")
+        try:
+            rows.append([float(v) for v in tok])
+        except ValueError as exc:
+            raise MrclamError(f"{path}:{lineno}: {exc}") from exc
     a = np.array(rows, dtype=float).reshape(-1, columns)
     if not np.isfinite(a).all():
         raise MrclamError(f"{path}: values must be finite")
@@ -129,7 +125,7 @@ def read_mrclam(folder, robot: int = 1, *, dt: float = DT) -> MrclamRun:
     MrclamError
         Malformed files, or streams that do not overlap in time.
     """
-    folder = Path(folder)
+    folder = data_folder(folder, MrclamError, "MRCLAM data set")
     robot = check_count("robot", robot)
     dt = check_positive("dt", dt)
     codes = read_dat(folder / "Barcodes.dat", 2).astype(np.int64)

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from robolab.grading.labs import LabError, find_lab
 
-__all__ = ["check", "data", "grade", "gradescope", "release", "solve"]
+__all__ = ["check", "data", "grade", "gradescope", "merge", "release", "similarity", "solve"]
 
 #: Exit code when a command could not do its job (as opposed to a low score).
 FAILED = 2
@@ -29,6 +29,19 @@ FAILED = 2
 def _error(message: str) -> int:
     print(f"robolab: error: {message}", file=sys.stderr)
     return FAILED
+
+
+#: The course options of grade and merge, and their defaults.
+_COURSE_DEFAULTS = {
+    "roster": None,
+    "overrides": None,
+    "exports": (),
+    "assignment": None,
+    "due": None,
+    "late_penalty": 0.0,
+    "late_cap": 100.0,
+    "submitted_times": None,
+}
 
 
 def _course_inputs(
@@ -76,8 +89,12 @@ def grade(
     late_penalty: float = 0.0,
     late_cap: float = 100.0,
     submitted_times: Path | None = None,
+    shard: str | None = None,
 ) -> int:
     """Grade notebooks into ``out`` (gradebook.csv, gradebook.json, feedback/) and print a summary.
+
+    ``shard`` (``"K/N"``) grades only the K-th of N slices of ``submissions``
+    (:mod:`~robolab.grading.course.shards`) and writes ``out/shard.json`` for ``robolab merge``.
 
     Exit 0 whenever grading ran, whatever the scores; 2 when it could not
     (a user error, unknown lab, pytest missing, hidden tests that do not run);
@@ -100,7 +117,9 @@ def grade(
         return _error(f"--timeout must be a positive number of seconds, got {timeout:g}")
     if jobs < 1:
         return _error(f"--jobs must be at least 1, got {jobs}")
-    missing = [p for p in submissions if not Path(p).is_file()]
+    # Only a path that names nothing stops the batch (a typo); a folder, a fifo or an
+    # unreadable file is that submission's problem, reported in its row.
+    missing = [p for p in submissions if not os.path.lexists(p)]
     if missing:
         return _error(f"no such notebook: {_shown(missing[0])}")
     root = project_root()
@@ -109,6 +128,10 @@ def grade(
     from robolab.grading.course.outputs import Course
 
     try:
+        if shard is not None:
+            from robolab.grading.course.shards import parse_shard
+
+            shard = parse_shard(shard)
         if lab is not None:
             find_lab(lab)
         inputs = _course_inputs(
@@ -122,6 +145,8 @@ def grade(
     except (LabError, ValueError) as exc:
         return _error(str(exc))
     planned = state.plan(list(submissions), lab, root, timeout)
+    if shard is not None:
+        planned = _slice(planned, shard, out)
     todo = [item for item in planned if item.previous is None]
     for item in planned:
         if item.previous is not None:
@@ -146,7 +171,7 @@ def grade(
             on_result=finished,
         )
     except BatchInterrupted as exc:
-        course.publish(final=True)
+        course.publish(final=True, report=False)
         print(
             f"robolab: interrupted: {exc.done} of {exc.total} submission(s) graded this run; "
             f"every finished one is saved in {_shown(out)}/ (gradebook.csv is valid). "
@@ -161,11 +186,7 @@ def grade(
     names = {item.name for item in planned}
     this_run = [r for r in state.results() if r.name in names]
     print(course.summary(this_run))
-    print(
-        f"\ngradebook: {_shown(out / 'gradebook.csv')} and {_shown(out / 'gradebook.json')}; "
-        f"feedback: {_shown(out / 'feedback')}/"
-        + "".join(f"; {kind}: {_shown(path)}" for kind, path in written.items())
-    )
+    _print_outputs(out, written)
     reused = len(planned) - len(todo)
     if reused:
         print(f"{reused} unchanged submission(s) kept from the last run (not regraded)")
@@ -176,6 +197,107 @@ def grade(
             file=sys.stderr,
         )
     return FAILED if fatal else 0
+
+
+def _print_outputs(out: Path, written: dict[str, Path]) -> None:
+    print(
+        f"\ngradebook: {_shown(out / 'gradebook.csv')} and {_shown(out / 'gradebook.json')}; "
+        f"feedback: {_shown(out / 'feedback')}/"
+        + "".join(f"; {kind}: {_shown(path)}" for kind, path in written.items())
+    )
+
+
+def merge(shards: Sequence[Path], *, out: Path, **course) -> int:
+    """Merge the output folders of ``robolab grade --shard K/N`` into ``out``.
+
+    ``out`` gets what one unsharded ``robolab grade`` of the same files with the same
+    course options writes (gradebook, feedback, exports, class report); see
+    :mod:`~robolab.grading.course.merge`. ``course`` takes :func:`grade`'s course
+    options (``roster``, ``overrides``, ``exports``, ``assignment``, ``due``,
+    ``late_penalty``, ``late_cap``, ``submitted_times``). Exit 0, or 2 when the shards
+    cannot be merged.
+    """
+    from robolab.grading.course.batch import BatchError, prepare_out
+    from robolab.grading.course.merge import merged_state, read_shards
+    from robolab.grading.course.outputs import Course
+
+    unknown = set(course) - set(_COURSE_DEFAULTS)
+    if unknown:
+        raise TypeError(f"merge() got unexpected course options {sorted(unknown)}")
+    c = {**_COURSE_DEFAULTS, **course}
+    overrides, exports, assignment = c["overrides"], c["exports"], c["assignment"]
+    try:
+        inputs = _course_inputs(
+            c["roster"],
+            overrides,
+            c["due"],
+            c["late_penalty"],
+            c["late_cap"],
+            c["submitted_times"],
+            exports,
+        )
+        parts = read_shards(shards)
+        state, modified = merged_state(parts, out)
+        out = prepare_out(out)
+        course = Course(
+            out, state, *inputs, exports=exports, assignment=assignment, modified=modified
+        )
+        if inputs[1] is not None:
+            course.keep_overrides(Path(overrides))
+    except (BatchError, ValueError) as exc:
+        return _error(str(exc))
+    written = course.publish(final=True)
+    results = state.results()
+    print(f"merged {len(parts)} shard(s): {len(results)} submission(s)")
+    print(course.summary(results))
+    _print_outputs(out, written)
+    return 0
+
+
+def similarity(notebooks: Sequence[Path], *, out: Path, shown: int = 25) -> int:
+    """Compare the submissions' exercise code (``robolab similarity``); see
+    :mod:`~robolab.grading.course.similarity`. Never runs a notebook."""
+    if importlib.util.find_spec("copydetect") is None:
+        return _error(
+            "robolab similarity needs copydetect: pip install 'robolab[instructor]' "
+            "(or pip install copydetect)"
+        )
+    missing = [p for p in notebooks if not Path(p).is_file()]
+    if missing:
+        return _error(f"no such notebook: {_shown(missing[0])}")
+    if len(notebooks) < 2:
+        return _error("give at least two notebooks to compare")
+    try:
+        _output_folder(out, "--out")
+    except ValueError as exc:
+        return _error(str(exc))
+    from robolab.grading.course.similarity import similarity_report
+
+    pairs = similarity_report([Path(p) for p in notebooks], Path(out), shown=shown)
+    close = [p for p in pairs if p.score >= 0.8]
+    print(
+        f"{len(pairs)} pair(s) of exercise code compared; {len(close)} at least 0.8 similar"
+        + "".join(f"\n  {p.score:.2f}  {p.exercise}: {p.a} ~ {p.b}" for p in close[:10])
+    )
+    print(
+        f"similarity: {_shown(Path(out) / 'similarity.csv')} and "
+        f"{_shown(Path(out) / 'similarity.html')}"
+    )
+    return 0
+
+
+def _slice(planned, shard, out: Path):
+    """The submissions of ``shard`` among ``planned`` (the whole batch); writes its manifest."""
+    from robolab.grading.course.batch import relative_paths
+    from robolab.grading.course.shards import batch_identity, deal, write_manifest
+
+    relative = relative_paths([item.key for item in planned])
+    dealt = deal(relative, [item.lab for item in planned], shard.count)
+    mine = [i for i, k in enumerate(dealt) if k == shard.index - 1]
+    identity = batch_identity(relative, [item.digest for item in planned])
+    members = [(planned[i].name, relative[i], planned[i].path) for i in mine]
+    write_manifest(out, shard, identity, len(planned), members)
+    return [planned[i] for i in mine]
 
 
 def _shown(path) -> str:
@@ -190,6 +312,7 @@ def _on_sigterm_interrupt():
         return None
 
     def interrupt(signum, frame):
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # one stops the batch; stopping is bounded
         raise KeyboardInterrupt
 
     return signal.signal(signal.SIGTERM, interrupt)
@@ -210,7 +333,6 @@ def check(notebook: Path) -> int:
     every visible check passed, 1 when one failed, 2 when the notebook cannot
     be checked.
     """
-    from robolab.checks.base import CheckFailed
     from robolab.grading.loading.notebook import load_notebook
 
     try:
@@ -240,14 +362,33 @@ def check(notebook: Path) -> int:
             f"{_shown(notebook)} is of lab {loaded.lab!r}, which has no visible checks "
             "(is the lab name in the notebook's metadata right?)"
         )
-    # The same cells, run the same way, as `robolab grade` runs them in its worker.
-    from robolab.grading.loading.kernel import load_budget, new_namespace, run_cells
+    # The same cells, run the same way, as `robolab grade` runs them in its worker: as
+    # `__main__`, in a scratch folder of their own (here a temporary one).
+    import tempfile
+
+    from robolab.grading.loading.kernel import Notebook, load_budget
     from robolab.grading.running.proxy import Limits
 
-    namespace = new_namespace("__notebook__")
     budget = load_budget(Limits().wall_seconds, Limits().cpu_seconds)
-    problems = list(loaded.problems)
-    problems += [loaded.problem(*failed) for failed in run_cells(namespace, loaded.cells, *budget)]
+    with (
+        tempfile.TemporaryDirectory(prefix="robolab-check-") as folder,
+        Notebook(folder) as kernel_notebook,
+    ):
+        problems = list(loaded.problems)
+        ran = kernel_notebook.run(loaded.cells, *budget)
+        problems += [loaded.problem(*failed) for failed in ran]
+        failures = _run_checks(visible, kernel_notebook.namespace, problems)
+    if failures:
+        print(f"{failures} of {len(visible)} visible checks failed.")
+        return 1
+    print("visible checks passed (the graded tests are stronger: test your edge cases too).")
+    return 0
+
+
+def _run_checks(visible: list, namespace: dict, problems: list) -> int:
+    """Print the load problems, run each visible check on its function; count the failures."""
+    from robolab.checks.base import CheckFailed
+
     for p in sorted(problems, key=lambda p: p.cell_index):
         print(f"note: {p}")
     failures = 0
@@ -266,11 +407,7 @@ def check(notebook: Path) -> int:
         except CheckFailed as exc:
             print(f"\u2718 {exc}")
             failures += 1
-    if failures:
-        print(f"{failures} of {len(visible)} visible checks failed.")
-        return 1
-    print("visible checks passed (the graded tests are stronger: test your edge cases too).")
-    return 0
+    return failures
 
 
 def _output_file(path: Path, what: str) -> Path:

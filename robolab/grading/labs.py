@@ -13,6 +13,7 @@ import ast
 import json
 import os
 import re
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -25,10 +26,13 @@ __all__ = [
     "Lab",
     "LabError",
     "discover_labs",
+    "display_path",
     "exercise_cells",
     "find_lab",
     "lab_of_notebook",
     "project_root",
+    "read_notebook",
+    "read_submission",
 ]
 
 #: Tag that marks a code cell holding exercise stubs.
@@ -106,23 +110,139 @@ def discover_labs(root: Path | None = None) -> list[Lab]:
     return [Lab(n, root) for n in sorted(names)]
 
 
+#: Largest notebook file read (bytes): a real one with figures is a few MiB.
+MAX_NOTEBOOK_BYTES = 64 * 2**20
+#: Deepest nesting of JSON arrays and objects accepted anywhere in a notebook
+#: (nbformat's own documents nest about 8 deep).
+MAX_NOTEBOOK_DEPTH = 100
+_KINDS = {
+    stat.S_IFDIR: "a folder",
+    stat.S_IFIFO: "a named pipe (fifo)",
+    stat.S_IFSOCK: "a socket",
+    stat.S_IFCHR: "a character device",
+    stat.S_IFBLK: "a block device",
+}
+
+
+def read_submission(path: str | os.PathLike) -> bytes:
+    """The bytes of a submitted file, read without ever blocking or reading without end.
+
+    ``path`` is opened non-blocking and must be a regular file (after symbolic
+    links) of at most :data:`MAX_NOTEBOOK_BYTES`: a fifo, a device or a folder
+    is refused rather than read.
+
+    Raises
+    ------
+    LabError
+        Naming ``path`` as given and what is wrong with it.
+    """
+    shown = display_path(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOCTTY)
+    except OSError as exc:
+        raise LabError(f"{shown}: cannot read the notebook: {exc.strerror or exc}") from None
+    try:
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
+            kind = _KINDS.get(stat.S_IFMT(info.st_mode), "not a regular file")
+            raise LabError(f"{shown}: is not a notebook file: it is {kind}")
+        if info.st_size > MAX_NOTEBOOK_BYTES:
+            raise LabError(
+                f"{shown}: is too large for a notebook ({info.st_size} bytes; "
+                f"at most {MAX_NOTEBOOK_BYTES} are read)"
+            )
+        with os.fdopen(os.dup(fd), "rb") as f:
+            data = f.read(MAX_NOTEBOOK_BYTES + 1)
+    except OSError as exc:
+        raise LabError(f"{shown}: cannot read the notebook: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+    if len(data) > MAX_NOTEBOOK_BYTES:
+        raise LabError(f"{shown}: is too large for a notebook (it grew while it was read)")
+    return data
+
+
+def read_notebook(path: str | os.PathLike) -> dict:
+    """A submitted notebook's JSON document, checked to be a notebook's shape.
+
+    Every failure, whatever the file holds (not UTF-8, not JSON, JSON nested
+    thousands deep, numbers too long to convert, a list instead of an object,
+    no cells, metadata that is not an object), is a :class:`LabError` with a
+    one-line reason naming ``path`` as given, so that one bad file fails only
+    its own submission.
+
+    Raises
+    ------
+    LabError
+        When the file cannot be read or is not a notebook.
+    """
+    shown = display_path(path)
+    data = read_submission(path)
+    try:
+        nb = json.loads(data.decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise LabError(f"{shown}: is not a notebook: not UTF-8 text ({exc.reason})") from None
+    except json.JSONDecodeError as exc:
+        raise LabError(
+            f"{shown}: is not a notebook: not valid JSON "
+            f"(line {exc.lineno} column {exc.colno}: {exc.msg})"
+        ) from None
+    except RecursionError:
+        raise LabError(
+            f"{shown}: is not a notebook: its JSON is nested too deeply to read"
+        ) from None
+    except ValueError as exc:  # a number of more digits than Python converts
+        raise LabError(f"{shown}: is not a notebook: not valid JSON ({exc})") from None
+    if not isinstance(nb, dict):
+        raise LabError(
+            f"{shown}: is not a notebook: its JSON is {type(nb).__name__}, not an object"
+        )
+    if not isinstance(nb.get("cells"), list):
+        raise LabError(f"{shown}: is not a notebook: it has no list of cells")
+    if not isinstance(nb.get("metadata", {}), dict):
+        raise LabError(f"{shown}: is not a notebook: its metadata is not an object")
+    depth = _depth(nb)
+    if depth > MAX_NOTEBOOK_DEPTH:
+        raise LabError(
+            f"{shown}: is not a notebook: its JSON is nested {depth} levels deep "
+            f"(at most {MAX_NOTEBOOK_DEPTH} are accepted)"
+        )
+    return nb
+
+
+def _depth(value: object) -> int:
+    """How deep JSON arrays and objects nest in ``value`` (iteratively: no recursion limit)."""
+    deepest, level = 0, [value]
+    while level:
+        deepest += 1
+        level = [
+            child
+            for item in level
+            if isinstance(item, (dict, list))
+            for child in (item.values() if isinstance(item, dict) else item)
+            if isinstance(child, (dict, list))
+        ]
+    return deepest
+
+
+def display_path(path: str | os.PathLike) -> str:
+    """A path (or any text holding one) as UTF-8 text: bytes that were not UTF-8 become
+    ``\\xNN`` (and any other lone surrogate ``\\uDNNN``)."""
+    try:
+        return os.fsencode(path).decode("utf-8", "backslashreplace")
+    except UnicodeEncodeError:  # a surrogate that no file name produced
+        return os.fspath(path).encode("utf-8", "backslashreplace").decode("utf-8")
+
+
 def lab_of_notebook(path: Path) -> str | None:
     """The lab named in a notebook's metadata (``{"robolab": {"lab": ...}}``), or None.
 
     Raises
     ------
     LabError
-        When the file is not a readable notebook.
+        When the file is not a readable notebook (see :func:`read_notebook`).
     """
-    # Plain JSON rather than nbformat: this runs once per submission and nbformat is slow to import.
-    try:
-        with open(path, encoding="utf-8") as f:
-            nb = json.load(f)
-        meta = nb.get("metadata", {}) if isinstance(nb, dict) else None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise LabError(f"{path} is not a readable notebook: {exc}") from exc
-    if not isinstance(meta, dict) or "cells" not in nb:
-        raise LabError(f"{path} is not a Jupyter notebook (no cells and metadata)")
+    meta = read_notebook(path).get("metadata", {})
     robolab_meta = meta.get("robolab")
     lab = robolab_meta.get("lab") if isinstance(robolab_meta, dict) else None
     return lab if isinstance(lab, str) and lab else None

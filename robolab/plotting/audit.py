@@ -295,17 +295,31 @@ class _Auditor:
         self.problems: list[str] = []
         self.printed: list[str] = []  # numpy reprs in printed text (_PrintedReprs)
         self.cell = 0
+        self.raw_cell = ""
         folder = os.environ.get("ROBOLAB_AUDIT_SAVE")
         self.save_to = Path(folder) if folder else None
 
-    def post_run_cell(self, result: Any) -> None:
-        import matplotlib.pyplot as plt
+    def pre_run_cell(self, info: Any) -> None:
+        self.raw_cell = info.raw_cell or ""
 
+    def where(self, number: int) -> str:
+        first = self.raw_cell.strip().splitlines()[:1]
+        return f"cell {number} ({first[0][:50]!r})" if first else f"cell {number}"
+
+    def post_execute(self) -> None:
+        """Audit the cell's figures before the inline backend shows and closes them."""
+        self.audit_figures(self.where(self.cell + 1))
+
+    def post_run_cell(self, result: Any) -> None:
         self.cell += 1
-        first = (result.info.raw_cell or "").strip().splitlines()[:1]
-        where = f"cell {self.cell} ({first[0][:50]!r})" if first else f"cell {self.cell}"
+        where = self.where(self.cell)
         if not _quiet(result.info.raw_cell or "") and (why := audit_value(result.result)):
             self.problems.append(f"{where}: {why}")
+        self.audit_figures(where)  # figures left open (a non-inline backend)
+
+    def audit_figures(self, where: str) -> None:
+        import matplotlib.pyplot as plt
+
         for number in plt.get_fignums():
             fig = plt.figure(number)
             if id(fig) in self.seen:
@@ -352,6 +366,9 @@ def load_ipython_extension(shell: Any) -> None:
     """``%load_ext robolab.plotting.audit``: audit every later cell's figures and values."""
     global _AUDITOR
     _AUDITOR = _Auditor(shell)
+    shell.events.register("pre_run_cell", _AUDITOR.pre_run_cell)
+    # before the inline backend's own post_execute hook, which shows and closes figures
+    shell.events.callbacks["post_execute"].insert(0, _AUDITOR.post_execute)
     shell.events.register("post_run_cell", _AUDITOR.post_run_cell)
     if not isinstance(sys.stdout, _PrintedReprs):
         sys.stdout = _PrintedReprs(sys.stdout, _AUDITOR)

@@ -64,6 +64,18 @@ def _make_fastslam(out: Path, progress: bool) -> list[Path]:
     return [Path(write_run(out / "fastslam.npz", seed=0))]
 
 
+def _make_graph_slam(out: Path, progress: bool) -> list[Path]:
+    from robolab.datasets.g2o import write_g2o
+    from robolab.sim.graphs import simulate_graph
+
+    graph, truth, landmarks = simulate_graph(seed=0)
+    out.mkdir(parents=True, exist_ok=True)
+    return [
+        write_g2o(graph, out / "graph_slam.g2o"),
+        _save_npz(out / "graph_slam_truth.npz", {"poses": truth, "landmarks": landmarks}),
+    ]
+
+
 #: Data set name -> the function that writes it into a folder.
 DATASETS: dict[str, Callable[[Path, bool], list[Path]]] = {
     "office": _make_office,
@@ -72,6 +84,7 @@ DATASETS: dict[str, Callable[[Path, bool], list[Path]]] = {
     "ekf_world": _make_ekf_world,
     "maze": _make_maze,
     "fastslam": _make_fastslam,
+    "graph_slam": _make_graph_slam,
 }
 
 
@@ -88,7 +101,8 @@ def make_data(
         Names of the data sets to make (see :data:`DATASETS`); default all.
         ``office``: office.yaml + office.pgm; ``mapping``: mapping.bag;
         ``localization``: localization.bag; ``ekf_world``: ekf_world.npz;
-        ``maze``: maze.png + maze.yaml; ``fastslam``: fastslam.npz.
+        ``maze``: maze.png + maze.yaml; ``fastslam``: fastslam.npz;
+        ``graph_slam``: graph_slam.g2o + graph_slam_truth.npz.
     progress : bool
         Show tqdm progress bars.
 

@@ -45,7 +45,7 @@ def write_notebook(
     return path
 
 
-def wait_for_idle_import(notebook: Path, module: str, seconds: float = 60.0) -> None:
+def wait_for_idle_import(notebook: Path, module: str, seconds: float = 600.0) -> None:
     """Open submissions of ``notebook`` until a warm worker has ``module`` imported.
 
     For the zygote's idle imports: they start once it has served a batch's first

@@ -26,7 +26,7 @@ def robolab(*args, cwd: Path | None = None) -> subprocess.CompletedProcess:
         [sys.executable, "-m", "robolab.cli", *map(str, args)],
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=900,
         cwd=cwd,
     )
 

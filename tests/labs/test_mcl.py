@@ -28,6 +28,7 @@ import math
 import numpy as np
 import pytest
 
+from robolab.checks.base import angle_error
 from robolab.geometry import compose, wrap_angle
 from robolab.maps import UNKNOWN, OccupancyGrid
 from robolab.raycast import cast_rays
@@ -35,9 +36,10 @@ from robolab.raycast import cast_rays
 grades = pytest.mark.grades
 requires = pytest.mark.requires
 
-#: The reference solution's grading time, seconds (`make grade`, correct example, -j 2,
-#: idle machine, 2026-12-01): a submission gets a few times that in total.
-REFERENCE_SECONDS = 15.3
+#: CPU seconds the reference solution's worker uses while graded (loading and every call,
+#: children included: `cpu_seconds` of the correct example in `make grade`'s gradebook.json,
+#: 2026-12-02): a submission gets 8 times that in total, at least 20 s (docs/grading.md).
+REFERENCE_CPU_SECONDS = 13.6
 
 #: Exercises each exercise is likely to call (the feedback names them when they fail).
 USES = {
@@ -194,7 +196,7 @@ def test_init_uniform_covers_free_cells_uniformly(lab):
 
 
 @grades("init_uniform", points=3)
-def test_init_uniform_headings_and_input(lab):
+def test_init_uniform_headings_and_input(lab, refuses):
     """Headings uniform on [-pi, pi); n < 1 and a map without free cells raise ValueError."""
     grid = _room()
     p = _f(lab.init_uniform(grid, 50_000, np.random.default_rng(3)))
@@ -202,9 +204,9 @@ def test_init_uniform_headings_and_input(lab):
     assert np.all((th >= -np.pi) & (th < np.pi)), "headings must be wrapped to [-pi, pi)"
     _mean_ok("heading", th, 0.0, np.pi**2 / 3)
     assert abs(th.var() - np.pi**2 / 3) < 0.05, "headings are not uniform on [-pi, pi)"
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "n = 0 particles"):
         lab.init_uniform(grid, 0, np.random.default_rng(0))
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "a grid without free cells (every cell occupied)"):
         lab.init_uniform(OccupancyGrid(np.ones((4, 4)), 0.1), 10, np.random.default_rng(0))
 
 
@@ -225,7 +227,7 @@ def test_init_gaussian_moments(lab):
 
 
 @grades("init_gaussian", points=2)
-def test_init_gaussian_wraps_and_validates(lab):
+def test_init_gaussian_wraps_and_validates(lab, refuses):
     """Headings near pi wrap to [-pi, pi); zero covariance copies the pose.
 
     A negative variance raises.
@@ -244,7 +246,7 @@ def test_init_gaussian_wraps_and_validates(lab):
         atol=1e-12,
         err_msg="cov = 0: every particle is the pose (1, 2, 0.3)",
     )
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "cov = diag(1, -1, 1), a negative variance"):
         lab.init_gaussian([0, 0, 0], np.diag([1.0, -1.0, 1.0]), 10, np.random.default_rng(0))
 
 
@@ -332,11 +334,9 @@ def test_motion_model_across_the_pi_seam(lab):
         "0.283, "
         "rot2 = 0.1) against the same motion from heading 0.3, same random draws",
     )
-    np.testing.assert_allclose(
-        wrap_angle(a[:, 2] - b[:, 2]),
-        0.0,
-        atol=1e-9,
-        err_msg="headings: the same motion across the seam and away from it, same random draws",
+    wrong = angle_error(a[:, 2], b[:, 2], atol=1e-09)
+    assert wrong is None, (
+        "headings: the same motion across the seam and away from it, same random draws: " + wrong
     )
 
 
@@ -409,7 +409,7 @@ def test_motion_model_corrected_reverse_motion(lab):
 
 
 @grades("sample_motion_model_odometry", points=2)
-def test_motion_model_noise_free_and_bad_input(lab):
+def test_motion_model_noise_free_and_bad_input(lab, refuses):
     """Without noise a particle moves as the odometry did, in its own frame.
 
     Bad shapes and alphas raise.
@@ -439,18 +439,16 @@ def test_motion_model_noise_free_and_bad_input(lab):
         atol=1e-9,
         err_msg="noise-free: positions = compose(particle, odometry motion in the odom frame)",
     )
-    np.testing.assert_allclose(
-        np.cos(moved[:, 2] - compose(particles, rel)[:, 2]),
-        1.0,
-        atol=1e-9,
-        err_msg="noise-free: headings = particle heading + odometry heading change (modulo 2 pi)",
+    wrong = angle_error(moved[:, 2], compose(particles, rel)[:, 2], atol=1e-6)
+    assert wrong is None, (
+        "noise-free: headings = particle heading + odometry heading change (modulo 2 pi): " + wrong
     )
     assert np.all((moved[:, 2] >= -np.pi) & (moved[:, 2] < np.pi)), "headings must be wrapped"
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "alphas = (0.1, -0.1, 0.1, 0.1), a negative noise parameter"):
         lab.sample_motion_model_odometry(
             particles, prev, now, (0.1, -0.1, 0.1, 0.1), np.random.default_rng(0)
         )
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "particles of shape (N, 2), without headings"):
         lab.sample_motion_model_odometry(
             particles[:, :2], prev, now, ALPHAS, np.random.default_rng(0)
         )
@@ -486,7 +484,7 @@ def test_likelihood_field_matches_brute_force(lab):
 
 
 @grades("likelihood_field", points=4)
-def test_likelihood_field_gaussian_and_edge_cases(lab):
+def test_likelihood_field_gaussian_and_edge_cases(lab, refuses):
     """The likelihood is the Gaussian of the distance.
 
     A map without obstacles is max_dist everywhere.
@@ -513,7 +511,7 @@ def test_likelihood_field_gaussian_and_edge_cases(lab):
     np.testing.assert_allclose(
         _f(empty["distance"]), 0.8, err_msg="no obstacle: distance = max_dist everywhere"
     )
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "sigma_hit = 0 (a standard deviation must be > 0)"):
         lab.likelihood_field(grid, 0.0, 1.0)
 
 
@@ -523,9 +521,10 @@ LASER = np.array([0.1, 0.05, 0.3])
 
 @grades("likelihood_field_model", points=5)
 def test_model_matches_table_6_3_oracle(lab):
-    """Log-likelihoods of 40 particles equal Table 6.3 beam by beam.
+    """Log-likelihoods of 40 particles equal Table 6.3 beam by beam; also of one particle.
 
     Max-range and invalid beams are skipped; endpoints off the map count as d = max_dist.
+    One particle and a scan of one beam, the smallest input, keep their shape (1,).
     """
     grid = _room()
     field = _field(grid, 0.1, 1.0)
@@ -549,6 +548,17 @@ def test_model_matches_table_6_3_oracle(lab):
         err_msg="Table 6.3 beam by beam: sum of log(z_hit N(d) + z_rand / z_max) over the valid "
         "beams",
     )
+    # the smallest valid input: one particle, a scan of one beam
+    one_scan = {"ranges": ranges[:1], "angles": angles[:1], "range_min": 0.05, "range_max": 6.0}
+    one = _f(lab.likelihood_field_model(one_scan, particles[:1].copy(), field, params))
+    assert one.shape == (1,), f"one particle (1, 3): expected shape (1,), got {one.shape}"
+    np.testing.assert_allclose(
+        one,
+        _model_oracle(one_scan, particles[:1], field, 0.9, 0.1, LASER),
+        rtol=1e-6,
+        atol=1e-6,
+        err_msg="one particle and a scan of one beam: expected Table 6.3's log-likelihood",
+    )
 
 
 @grades("likelihood_field_model", points=2)
@@ -562,7 +572,14 @@ def test_model_invariant_to_particle_order(lab):
     )
     scan = _scan_from(grid, [2.0, 2.5, 0.4], LASER)
     params = {**MODEL, "laser_pose": LASER}
-    logw = _f(lab.likelihood_field_model(scan, particles, field, params))
+    logw = _f(lab.likelihood_field_model(scan, particles.copy(), field, params))
+    np.testing.assert_allclose(
+        logw,
+        _model_oracle(scan, particles, field, 0.9, 0.1, LASER),
+        rtol=1e-6,
+        atol=1e-9,
+        err_msg="300 random particles: expected the Table 6.3 log-likelihoods",
+    )
     perm = rng.permutation(300)
     np.testing.assert_allclose(
         _f(lab.likelihood_field_model(scan, particles[perm], field, params)),
@@ -663,7 +680,7 @@ def test_model_log_form_when_a_mixture_term_vanishes(lab):
 
 
 @grades("likelihood_field_model", points=4)
-def test_model_off_map_and_max_range_beams(lab):
+def test_model_off_map_and_max_range_beams(lab, refuses):
     """Max-range and invalid beams carry no information.
 
     Endpoints off the map score as d = max_dist.
@@ -701,13 +718,13 @@ def test_model_off_map_and_max_range_beams(lab):
         )
     )
     assert np.all(np.isfinite(logw)), "with z_rand = 0 the log-likelihood must stay finite"
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "params with z_hit = -0.5, a negative mixture weight"):
         lab.likelihood_field_model(scan, far, field, {"z_hit": -0.5, "z_rand": 0.1})
 
 
 # ================================== normalize_log_weights (4) ====================================
 @grades("normalize_log_weights", points=1)
-def test_normalize_log_weights_refuses_all_zero_weights(lab):
+def test_normalize_log_weights_refuses_all_zero_weights(lab, refuses):
     """Every log-weight -inf (every weight vanished) raises ValueError instead of returning NaN."""
     ok = _f(lab.normalize_log_weights(np.array([-np.inf, -5.0, -np.inf])))
     np.testing.assert_allclose(
@@ -716,12 +733,12 @@ def test_normalize_log_weights_refuses_all_zero_weights(lab):
         atol=1e-12,
         err_msg="one finite log-weight among -inf takes all the weight",
     )
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "logw = four times -inf (every weight vanished)"):
         lab.normalize_log_weights(np.full(4, -np.inf))
 
 
 @grades("normalize_log_weights", points=3)
-def test_normalize_log_weights_without_underflow(lab):
+def test_normalize_log_weights_without_underflow(lab, refuses):
     """Log-weights around -1000 normalize without underflow (subtract the maximum); NaN raises."""
     logw = np.array([-1000.0, -1001.0, -1002.5, -np.inf, -999.0])
     w = _f(lab.normalize_log_weights(logw))
@@ -740,7 +757,7 @@ def test_normalize_log_weights_without_underflow(lab):
         0.25,
         err_msg="four equal log-weights of 800 (exp overflows): 1/4 each",
     )
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "logw = (0, NaN)"):
         lab.normalize_log_weights(np.array([0.0, np.nan]))
 
 
@@ -919,16 +936,11 @@ def _run(lab, bag, field, particles, seed, every, t_end, params=None):
 
 #: The end-to-end runs of mcl_step count only when mcl_step's own parts and the pieces it is
 #: made of (the student's motion and measurement models, normalization, resampling) pass.
+# mcl_step's own core tests: the models it calls answer as the reference while it is graded
+# (robolab.grading.running.answers), so their mistakes cannot cost these points.
 MCL_PIECES = (
     "test_mcl_step_update_thresholds_and_resample_interval",
     "test_mcl_step_multiplies_and_carries_incoming_weights",
-    "test_motion_model_straight",
-    "test_motion_model_turning",
-    "test_motion_model_across_the_pi_seam",
-    "test_model_matches_table_6_3_oracle",
-    "test_model_log_form_when_a_mixture_term_vanishes",
-    "test_normalize_log_weights_without_underflow",
-    "test_low_variance_resample_counts",
 )
 
 
@@ -1047,13 +1059,13 @@ def test_kld_sample_size_closed_form(lab):
 
 
 @grades("kld_sample_size", points=3)
-def test_kld_sample_size_equals_amcl_resample_limit(lab):
+def test_kld_sample_size_equals_amcl_resample_limit(lab, refuses):
     # AMCL's defaults: kld_err 0.01, kld_z 0.99, min_particles 100, max_particles 5000
     """Clamped to [100, 5000] it equals AMCL's pf_resample_limit; epsilon = 0 raises."""
     for k in (2, 4, 8, 16, 30, 64, 128, 256, 512):
         n = float(lab.kld_sample_size(k, 0.01, 0.99))
         assert min(max(n, 100), 5000) == _amcl_resample_limit(k, 0.01, 0.99, 100, 5000), f"k = {k}"
-    with pytest.raises(ValueError):
+    with refuses(ValueError, "epsilon = 0 (the error bound must be > 0)"):
         lab.kld_sample_size(5, 0.0, 2.326)
 
 
@@ -1083,7 +1095,7 @@ def test_augmented_mcl_running_averages_equal_the_formula(lab):
     w_avg = float(np.mean(np.exp(_model_oracle(scan, p, field, 0.9, 0.1, LASER) / k)))
     for slow, fast in ((0.2, 0.3), (1.5, 0.4)):
         out = lab.augmented_mcl_step(
-            p,
+            p.copy(),
             np.full(300, 1 / 300),
             np.zeros(3),
             np.zeros(3),
@@ -1117,8 +1129,8 @@ def test_augmented_mcl_resamples_with_the_incoming_weights(lab):
     w[7] = 1.0
     scan = _scan_from(grid, [1.0, 2.0, 0.2], LASER)
     out = lab.augmented_mcl_step(
-        p,
-        w,
+        p.copy(),  # compared with p[7] below: the function gets a copy it may change
+        w.copy(),
         np.zeros(3),
         np.zeros(3),
         scan,

@@ -30,7 +30,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from robolab.grading.labs import LabError, discover_labs, find_lab, lab_of_notebook
+from robolab.grading.labs import (
+    LabError,
+    discover_labs,
+    display_path,
+    find_lab,
+    lab_of_notebook,
+    read_submission,
+)
 from robolab.grading.running.runner import SubmissionResult
 
 __all__ = [
@@ -81,15 +88,6 @@ def atomic_write(path: Path, text: str) -> None:
         except OSError:
             pass
         raise
-
-
-def display_path(path: str | os.PathLike) -> str:
-    """A path (or any text holding one) as UTF-8 text: bytes that were not UTF-8 become
-    ``\\xNN`` (and any other lone surrogate ``\\uDNNN``)."""
-    try:
-        return os.fsencode(path).decode("utf-8", "backslashreplace")
-    except UnicodeEncodeError:  # a surrogate that no file name produced
-        return os.fspath(path).encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 def prepare_out(out: Path) -> Path:
@@ -164,10 +162,10 @@ def submission_names(paths: Sequence[str | os.PathLike]) -> list[str]:
 
 
 def file_digest(path: Path) -> str | None:
-    """sha256 of the file's bytes, or None when it cannot be read."""
+    """sha256 of the file's bytes, or None when it is not a readable notebook-sized file."""
     try:
-        return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-    except OSError:
+        return hashlib.sha256(read_submission(path)).hexdigest()
+    except LabError:
         return None
 
 
@@ -180,8 +178,9 @@ def grader_fingerprint(lab: str | None, root: Path, timeout: float) -> str:
     import robolab
 
     h = hashlib.sha256(f"{robolab.__version__}\0{lab}\0{timeout!r}".encode())
-    grading = Path(__file__).resolve().parent
-    files = sorted(grading.glob("*.py"))
+    # every module of robolab.grading, in all its sub-packages (not only this one's)
+    grading = Path(__file__).resolve().parents[1]
+    files = sorted(grading.rglob("*.py"), key=lambda f: f.relative_to(grading).as_posix())
     if lab is not None:
         try:
             spec = find_lab(lab, root)

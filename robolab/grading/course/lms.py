@@ -11,19 +11,22 @@
   "ID number" (to ``idnumber``) and the grade column to a grade item; a feedback column
   can be mapped to that item's feedback.
 
-A student without a submission gets an empty cell, not a zero; a student with several
-submissions gets the best final score (the gradebook flags them).
+Every cell goes through :func:`robolab.grading.course.spreadsheet.csv_text`: roster text
+a spreadsheet would evaluate (``=HYPERLINK(...)``) gets a leading single quote, which
+neither LMS uses to match students (real ids and emails never start with ``= + - @``);
+scores stay plain numbers. A student without a submission gets an empty cell, not a
+zero; a student with several submissions gets the best final score (the gradebook
+flags them).
 """
 
 from __future__ import annotations
 
-import csv
-import io
 from collections.abc import Sequence
 from pathlib import Path
 
 from robolab.grading.course.batch import atomic_write
 from robolab.grading.course.roster import Student
+from robolab.grading.course.spreadsheet import csv_text
 
 __all__ = ["EXPORTS", "canvas_csv", "moodle_csv", "write_export"]
 
@@ -46,34 +49,33 @@ def _points(row: dict | None) -> str:
 def canvas_csv(rows: Sequence[dict], students: Sequence[Student], assignment: str) -> str:
     """The Canvas gradebook import CSV for one assignment column."""
     best = _best(rows)
-    buffer = io.StringIO()
-    w = csv.writer(buffer)
-    w.writerow([*CANVAS_COLUMNS, assignment])
-    for s in students:
-        w.writerow(
-            [
-                s.name,
-                s.canvas_id,
-                s.id,
-                s.sis_login_id or s.email,
-                s.section,
-                _points(best.get(s.id)),
-            ]
-        )
-    return buffer.getvalue()
+    return csv_text(
+        [
+            [*CANVAS_COLUMNS, assignment],
+            *(
+                [
+                    s.name,
+                    s.canvas_id,
+                    s.id,
+                    s.sis_login_id or s.email,
+                    s.section,
+                    _points(best.get(s.id)),
+                ]
+                for s in students
+            ),
+        ]
+    )
 
 
 def moodle_csv(rows: Sequence[dict], students: Sequence[Student], assignment: str) -> str:
     """A Moodle grade import CSV: ID number, email, name, the grade and its feedback."""
     best = _best(rows)
-    buffer = io.StringIO()
-    w = csv.writer(buffer)
-    w.writerow(["ID number", "Email address", "Full name", assignment, "Feedback"])
+    table = [["ID number", "Email address", "Full name", assignment, "Feedback"]]
     for s in students:
         row = best.get(s.id)
         note = "" if row is None else f"{row['final']:g} / {row['max']:g} points (robolab)"
-        w.writerow([s.id, s.email, s.name, _points(row), note])
-    return buffer.getvalue()
+        table.append([s.id, s.email, s.name, _points(row), note])
+    return csv_text(table)
 
 
 EXPORTS = {"canvas": canvas_csv, "moodle": moodle_csv}

@@ -1,9 +1,9 @@
 """One batch's outputs: the autograded results joined with the course's roster, late policy
-and manual overrides, written as the gradebook, feedback and LMS exports.
+and manual overrides, written as the gradebook, feedback, LMS exports and class report.
 
 :class:`Course` is what ``robolab grade`` publishes after every finished submission
 (gradebook and that submission's feedback) and at the end (all feedback, stale
-feedback removed, exports).
+feedback removed, exports, the class report ``report.html``).
 """
 
 from __future__ import annotations
@@ -12,6 +12,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from robolab.grading.course.batch import BatchState, atomic_write, relative_paths
+from robolab.grading.course.class_report import write_class_report
 from robolab.grading.course.late import LatePolicy, submission_time
 from robolab.grading.course.lms import write_export
 from robolab.grading.course.overrides import Override, read_overrides
@@ -46,6 +47,9 @@ class Course:
         use that file when it exists.
     policy, times
         The late policy and the timestamp rows (None: file modification times).
+    modified
+        Modification times by submission name, used instead of the files' own when
+        ``times`` is None (a merge of shards, whose files may be on other machines).
     """
 
     def __init__(
@@ -59,8 +63,10 @@ class Course:
         *,
         exports: Sequence[str] = (),
         assignment: str | None = None,
+        modified: dict | None = None,
     ):
         self.out, self.state = Path(out), state
+        self.modified = modified or {}
         self.students, self.policy, self.times = students, policy, times
         self.exports, self.assignment = tuple(exports), assignment
         stored = self.out / OVERRIDES_FILE
@@ -83,15 +89,19 @@ class Course:
         lateness = {}
         if self.policy is not None:
             for key, name in zip(keys, names, strict=True):
-                when = submission_time(Path(key), relative[name], self.times)
+                if self.times is None and name in self.modified:
+                    when = self.modified[name]
+                else:
+                    when = submission_time(Path(key), relative[name], self.times)
                 lateness[name] = self.policy.lateness(when)
         return Context(roster=roster, lateness=lateness, overrides=self.overrides)
 
     def publish(
-        self, changed: SubmissionResult | None = None, *, final: bool = False
+        self, changed: SubmissionResult | None = None, *, final: bool = False, report: bool = True
     ) -> dict[str, Path]:
         """Rewrite the gradebook; write ``changed``'s feedback, or (``final``) every
-        submission's feedback, remove stale feedback and write the exports."""
+        submission's feedback, remove stale feedback and write the exports and (unless
+        ``report`` is False: an interrupted batch stops at once) the class report."""
         results = self.state.results()
         context = self.context()
         write_gradebook(results, self.out, context)
@@ -101,14 +111,18 @@ class Course:
             return {}
         write_feedback(results, self.out, context)
         remove_stale_feedback(self.out, [r.name for r in results])
-        if not final or self.students is None:
+        if not final:
             return {}
         rows = gradebook_rows(results, context)
+        written = {"class report": write_class_report(results, rows, self.out)} if report else {}
+        if self.students is None:
+            return written
         assignment = self.assignment or ", ".join(sorted({r.lab for r in results if r.lab}))
-        return {
-            kind: write_export(kind, rows, self.students, assignment or "robolab", self.out)
-            for kind in self.exports
-        }
+        for kind in self.exports:
+            written[kind] = write_export(
+                kind, rows, self.students, assignment or "robolab", self.out
+            )
+        return written
 
     def summary(self, results: Sequence[SubmissionResult]) -> str:
         """The summary table of ``results``, then what the instructor must look at."""

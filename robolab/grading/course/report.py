@@ -16,8 +16,6 @@ points with overrides, ``final`` is ``total`` after the late penalty.
 
 from __future__ import annotations
 
-import csv
-import io
 import json
 import re
 from collections.abc import Sequence
@@ -28,6 +26,7 @@ from robolab.grading.course.batch import atomic_write, display_path
 from robolab.grading.course.late import Lateness
 from robolab.grading.course.overrides import Override, apply_overrides
 from robolab.grading.course.roster import RosterMatch
+from robolab.grading.course.spreadsheet import csv_text
 from robolab.grading.running.runner import SubmissionResult, TestOutcome
 
 __all__ = [
@@ -94,7 +93,7 @@ def _row(r: SubmissionResult, context: Context) -> dict:
     total = sum(got for got, _ in scores.values())
     late = context.lateness.get(r.name)
     student = context.roster.student_of.get(r.name) if context.roster else None
-    flags = list(r.flags) + refused + (context.roster.flags(r.name) if context.roster else [])
+    flags = _flags(r) + refused + (context.roster.flags(r.name) if context.roster else [])
     return {
         "submission": r.name,
         "path": display_path(r.path),
@@ -115,6 +114,7 @@ def _row(r: SubmissionResult, context: Context) -> dict:
         "errors": [display_path(e) for e in r.errors],
         "load_problems": len(r.problems),
         "seconds": round(r.seconds, 2),
+        "cpu_seconds": round(r.cpu_seconds, 2),
         "isolation": r.isolation,
     }
 
@@ -156,9 +156,7 @@ def write_gradebook(
     exercises = _exercise_columns(results)
     # The isolation column only when the sandbox left something unprotected (then on every row).
     tail = _CSV_TAIL + (["isolation"] if any(r.isolation for r in results) else [])
-    buffer = io.StringIO()
-    w = csv.writer(buffer)
-    w.writerow([*_CSV_HEAD, *exercises, *tail])
+    table = [[*_CSV_HEAD, *exercises, *tail]]
     for row in rows:
         per = [
             _pts(row["exercises"][e]["earned"]) if e in row["exercises"] else "" for e in exercises
@@ -167,12 +165,9 @@ def write_gradebook(
             k: "; ".join(v) if isinstance(v, list) else _pts(v) if isinstance(v, float) else v
             for k, v in row.items()
         }
-        w.writerow(
-            [*("" if cells[k] is None else cells[k] for k in _CSV_HEAD), *per]
-            + ["" if cells.get(k) is None else cells[k] for k in tail]
-        )
+        table.append([*(cells[k] for k in _CSV_HEAD), *per] + [cells.get(k) for k in tail])
     atomic_write(json_path, json.dumps(rows, indent=1) + "\n")
-    atomic_write(csv_path, buffer.getvalue())
+    atomic_write(csv_path, csv_text(table))  # no cell a spreadsheet would evaluate
     return csv_path, json_path
 
 
@@ -277,9 +272,15 @@ def remove_stale_feedback(out: Path, names: Sequence[str]) -> list[Path]:
     return stale
 
 
+def _flags(r: SubmissionResult) -> list[str]:
+    """The result's flags, a limit that cut it short among them."""
+    return [*r.flags, *(f"limit: {line}" for line in r.limits)]
+
+
 def _details(r: SubmissionResult) -> str:
-    if r.flags:
-        return "FLAG: " + _printable(r.flags[0])
+    if flags := _flags(r):
+        more = f" (+{len(flags) - 1} more)" if len(flags) > 1 else ""
+        return "FLAG: " + _printable(flags[0]) + more
     if r.errors:
         note = _printable(r.errors[0].splitlines()[0] if r.errors[0].strip() else r.errors[0])
         return note if len(note) <= 70 else note[:67] + "..."

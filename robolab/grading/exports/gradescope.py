@@ -52,6 +52,7 @@ __all__ = [
     "VISIBILITIES",
     "BundleOptions",
     "answers_exposed",
+    "is_bundle",
     "build_bundle",
     "find_submission",
     "results_json",
@@ -156,6 +157,15 @@ def _add_text(
     zf.writestr(info, text)
 
 
+def is_bundle(path: Path) -> bool:
+    """Whether ``path`` is a zip that :func:`build_bundle` wrote (a file it may replace)."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            return {"setup.sh", "run_autograder", OPTIONS_FILE} <= set(zf.namelist())
+    except (OSError, zipfile.BadZipFile):
+        return False
+
+
 def build_bundle(
     lab: str, out: Path, root: Path | None = None, *, options: BundleOptions | None = None
 ) -> Path:
@@ -168,6 +178,8 @@ def build_bundle(
     ------
     LabError
         When the lab has no hidden tests or no reference solution.
+    ValueError
+        When ``out`` exists and is not such a bundle (it is never replaced).
     """
     spec = find_lab(lab, root)
     if not spec.solution.is_file():
@@ -181,6 +193,11 @@ def build_bundle(
             f"(its exercises: {', '.join(sorted(graded))})"
         )
     out = Path(out)
+    if out.exists() and not is_bundle(out):
+        raise ValueError(
+            f"{out} exists and is not a Gradescope autograder bundle; refusing to replace "
+            "it (move it away or choose another name)"
+        )
     out.parent.mkdir(parents=True, exist_ok=True)
     with zipfile.ZipFile(out, "w", zipfile.ZIP_DEFLATED) as zf:
         _add_text(zf, "setup.sh", SETUP_SH, executable=True)
@@ -244,8 +261,10 @@ def answers_exposed(root: Path) -> list[str]:
     """
     paths = [Path(root) / "solutions", Path(root) / "tests"]
     protection = describe_protection()
-    probed = [] if protection.answers_protected else list(
-        protection.problems or ["a sandboxed worker could read the answers"]
+    probed = (
+        []
+        if protection.answers_protected
+        else list(protection.problems or ["a sandboxed worker could read the answers"])
     )
     return probed + _readable_answer_files(paths)
 

@@ -25,7 +25,11 @@ import signal
 import time
 from dataclasses import dataclass, field
 
-__all__ = ["GroupClock", "Member", "group_members", "last_pid"]
+__all__ = ["AwakeClock", "GroupClock", "Member", "group_members", "last_pid", "run_delay"]
+
+#: Environment variable naming a file where the proxy appends each worker's pid: the
+#: runner's timeout leaves out the time the workers of its pytest run waited for a CPU.
+WORKER_PIDS_VARIABLE = "ROBOLAB_WORKER_PIDS"
 
 _TICK = os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
 
@@ -68,6 +72,76 @@ def last_pid() -> int:
             return int(f.read().split()[-1])
     except (OSError, ValueError, IndexError):
         return -1
+
+
+def run_delay(pid: int | str = "thread-self") -> float | None:
+    """Seconds ``pid``'s main thread (default: the calling thread) has spent runnable but
+    waiting for a CPU; None when unknown.
+
+    The second field of ``/proc/<pid>/schedstat`` (nanoseconds on the run queue):
+    the time a loaded machine, not the process, is responsible for.
+    """
+    try:
+        with open(f"/proc/{pid}/schedstat", "rb") as f:
+            return int(f.read().split()[1]) / 1e9
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+class AwakeClock:
+    """Wall time of a process *net of the time it waited for a CPU*: what a wall limit counts.
+
+    On a loaded machine a process spends most of its wall time on the run queue,
+    waiting for a core that other processes hold; that time says nothing about the
+    process. What is left -- running, sleeping, blocked on a pipe -- is the same at
+    any load, so a wall-clock backstop measured on this clock stops a sleeping or
+    stalled submission without ever stopping one that merely waits for a core. Where
+    ``/proc/<pid>/schedstat`` cannot be read (no ``CONFIG_SCHED_INFO``, not Linux) the
+    clock is plain wall time.
+
+    Only the main thread's waiting is left out: a worker blocked on a child or thread
+    that waits for a core counts that time (the CPU limits bound the child). The
+    reader of the clock may :meth:`excuse` time the process spent waiting for *it*
+    (a worker that has answered sleeps until the grader, itself waiting for a core,
+    reads the answer).
+    """
+
+    def __init__(self, pid: int) -> None:
+        self.pid = pid
+        self._last = 0.0  # the last reading (a dead process keeps its last one)
+        self._others: dict[int, list[float]] = {}  # pid: [first reading, last reading]
+        self.restart()
+
+    def _delay(self) -> float:
+        delay = run_delay(self.pid)
+        if delay is not None:
+            self._last = delay
+        for pid, readings in self._others.items():
+            if (delay := run_delay(pid)) is not None:
+                readings[1] = delay
+        return self._last + sum(last - first for first, last in self._others.values())
+
+    def restart(self) -> None:
+        """Count from now."""
+        self._wall = time.monotonic()
+        self._others.clear()
+        self._base = self._delay()
+        self._excused = 0.0
+
+    def watch(self, pid: int) -> None:
+        """Also leave out the time ``pid`` waits for a CPU from now on (a process this one
+        waits for: the grader's pytest run waits for its workers)."""
+        if pid not in self._others and (delay := run_delay(pid)) is not None:
+            self._others[pid] = [delay, delay]
+
+    def excuse(self, seconds: float) -> None:
+        """Leave ``seconds`` out: the process waited for the reader, who waited for a CPU."""
+        self._excused += max(seconds, 0.0)
+
+    def elapsed(self) -> float:
+        """Seconds since :meth:`restart`, less the time spent waiting for a CPU meanwhile."""
+        wall = time.monotonic() - self._wall
+        return max(wall - max(self._delay() - self._base, 0.0) - self._excused, 0.0)
 
 
 #: Most new pids checked one by one; beyond that (or after a wrap) the whole of /proc is read.

@@ -44,6 +44,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from robolab.grading.isolation import seccomp
+from robolab.grading.isolation.landlock import landlock_abi, restrict
+from robolab.grading.isolation.libc import SandboxError, _check, _libc
 
 __all__ = [
     "SandboxError",
@@ -80,22 +82,6 @@ SYSTEM_PATHS = (
 
 # Syscall numbers: the same on x86_64 and aarch64 (and every architecture
 # using the generic table; Landlock came after the tables were unified).
-_SYS_LANDLOCK = {"x86_64": (444, 445, 446), "aarch64": (444, 445, 446), "arm64": (444, 445, 446)}
-_LANDLOCK_CREATE_RULESET_VERSION = 1 << 0
-_LANDLOCK_RULE_PATH_BENEATH = 1
-
-_FS_EXECUTE = 1 << 0
-_FS_WRITE_FILE = 1 << 1
-_FS_READ_FILE = 1 << 2
-_FS_READ_DIR = 1 << 3
-_FS_REFER = 1 << 13  # ABI 2
-_FS_TRUNCATE = 1 << 14  # ABI 3
-_FS_IOCTL_DEV = 1 << 15  # ABI 5
-_NET_BIND_TCP = 1 << 0  # ABI 4
-_NET_CONNECT_TCP = 1 << 1  # ABI 4
-_SCOPE_ABSTRACT_UNIX_SOCKET = 1 << 0  # ABI 6
-_SCOPE_SIGNAL = 1 << 1  # ABI 6
-
 _PR_SET_NO_NEW_PRIVS = 38
 _PR_SET_PDEATHSIG = 1
 _PR_SET_CHILD_SUBREAPER = 36
@@ -110,67 +96,6 @@ _MS_REMOUNT = 32
 _MS_BIND = 4096
 _MS_REC = 16384
 _MS_PRIVATE = 1 << 18
-
-
-class SandboxError(OSError):
-    """A step of the sandbox that was planned could not be applied."""
-
-
-def _fs_rights(abi: int) -> int:
-    rights = (1 << 13) - 1  # ABI 1: bits 0..12
-    if abi >= 2:
-        rights |= _FS_REFER
-    if abi >= 3:
-        rights |= _FS_TRUNCATE
-    if abi >= 5:
-        rights |= _FS_IOCTL_DEV
-    return rights
-
-
-class _RulesetAttr(ctypes.Structure):
-    _fields_ = [
-        ("handled_access_fs", ctypes.c_uint64),
-        ("handled_access_net", ctypes.c_uint64),
-        ("scoped", ctypes.c_uint64),
-    ]
-
-
-class _PathBeneathAttr(ctypes.Structure):
-    _pack_ = 1  # the kernel struct is __attribute__((packed)): 12 bytes
-    _fields_ = [("allowed_access", ctypes.c_uint64), ("parent_fd", ctypes.c_int32)]
-
-
-def _libc() -> ctypes.CDLL:
-    # The running interpreter already links libc; find_library would spawn ldconfig.
-    libc = ctypes.CDLL(None, use_errno=True)
-    libc.syscall.restype = ctypes.c_long
-    return libc
-
-
-def _check(result: int, what: str) -> int:
-    if result < 0:
-        code = ctypes.get_errno()
-        raise SandboxError(code, f"{what}: {os.strerror(code)}")
-    return result
-
-
-def landlock_abi() -> int:
-    """The kernel's Landlock ABI version, 0 when Landlock is unavailable.
-
-    Landlock is unavailable on kernels before 5.13, when it is not enabled at
-    boot (``lsm=``), on architectures whose syscall numbers are not known here,
-    and on systems other than Linux.
-    """
-    if sys.platform != "linux":
-        return 0
-    numbers = _SYS_LANDLOCK.get(platform.machine())
-    if numbers is None:
-        return 0
-    libc = _libc()
-    abi = libc.syscall(
-        numbers[0], None, ctypes.c_size_t(0), ctypes.c_uint32(_LANDLOCK_CREATE_RULESET_VERSION)
-    )
-    return max(int(abi), 0)
 
 
 def worker_uid(worker_pid: int) -> int:
@@ -368,7 +293,7 @@ def apply(plan: SandboxPlan) -> SandboxReport:
 
     report.landlock_abi = landlock_abi()
     if plan.landlock and report.landlock_abi > 0:
-        _landlock(libc, report.landlock_abi, readonly, plan.workdir)
+        restrict(libc, report.landlock_abi, readonly, plan.workdir, DEVICES)
         report.landlock = True
         if report.landlock_abi >= 4 and report.network_denied == "no":
             report.network_denied = "landlock-tcp"
@@ -621,59 +546,3 @@ def _bind(libc: ctypes.CDLL, source: str, target: str, *, readonly: bool) -> Non
             flags |= _MS_NODEV
         _mount(libc, None, target, None, flags)
 
-
-def _landlock(libc: ctypes.CDLL, abi: int, readonly: list[str], workdir: str) -> None:
-    create, add_rule, restrict = _SYS_LANDLOCK[platform.machine()]
-    handled = _fs_rights(abi)
-    attr = _RulesetAttr(handled_access_fs=handled)
-    size = 8
-    if abi >= 4:
-        attr.handled_access_net = _NET_BIND_TCP | _NET_CONNECT_TCP  # no rules: all TCP denied
-        size = 16
-    if abi >= 6:
-        attr.scoped = _SCOPE_ABSTRACT_UNIX_SOCKET | _SCOPE_SIGNAL
-        size = 24
-    ruleset = _check(
-        libc.syscall(create, ctypes.byref(attr), ctypes.c_size_t(size), ctypes.c_uint32(0)),
-        "landlock_create_ruleset",
-    )
-    file_rights = (
-        _FS_EXECUTE | _FS_WRITE_FILE | _FS_READ_FILE | (handled & (_FS_TRUNCATE | _FS_IOCTL_DEV))
-    )
-    read = _FS_EXECUTE | _FS_READ_FILE | _FS_READ_DIR
-    try:
-        for path in readonly:
-            _allow(libc, add_rule, ruleset, path, read)
-        for device in DEVICES:
-            rights = file_rights if device == "/dev/null" else _FS_READ_FILE
-            _allow(libc, add_rule, ruleset, device, rights)
-        _allow(libc, add_rule, ruleset, workdir, handled)
-        _check(
-            libc.syscall(restrict, ctypes.c_int(ruleset), ctypes.c_uint32(0)),
-            "landlock_restrict_self",
-        )
-    finally:
-        os.close(ruleset)
-
-
-def _allow(libc: ctypes.CDLL, add_rule: int, ruleset: int, path: str, rights: int) -> None:
-    try:
-        fd = os.open(path, os.O_PATH | os.O_CLOEXEC)
-    except FileNotFoundError:
-        return
-    try:
-        if not stat.S_ISDIR(os.fstat(fd).st_mode):
-            # Directory-only rights on a file make the kernel refuse the rule.
-            rights &= _FS_EXECUTE | _FS_WRITE_FILE | _FS_READ_FILE | _FS_TRUNCATE | _FS_IOCTL_DEV
-        rule = _PathBeneathAttr(allowed_access=rights, parent_fd=fd)
-        result = libc.syscall(
-            add_rule,
-            ctypes.c_int(ruleset),
-            ctypes.c_int(_LANDLOCK_RULE_PATH_BENEATH),
-            ctypes.byref(rule),
-            ctypes.c_uint32(0),
-        )
-        if result < 0 and ctypes.get_errno() != errno.ENOENT:
-            _check(result, f"landlock_add_rule {path}")
-    finally:
-        os.close(fd)

@@ -73,12 +73,19 @@ class WarmChild:
                 self.conn.close()
 
     def _read(self, timeout: float | None) -> None:
+        # Poll without the lock: a thread waiting a long time for the child must not keep
+        # another (stopping it on SIGTERM) from waiting a short time.
+        if self.returncode is not None or not _readable(self.conn, timeout):
+            return
         with self._lock:
             if self.returncode is not None:
                 return
-            if not _readable(self.conn, timeout):
-                return
-            chunk = self.conn.recv(4096)
+            try:
+                chunk = self.conn.recv(4096, socket.MSG_DONTWAIT)
+            except BlockingIOError:
+                return  # another thread read it first
+            except OSError:
+                chunk = b""
             if not chunk:
                 # The zygote died; its workers die with it (PDEATHSIG).
                 self.returncode = -signal.SIGKILL

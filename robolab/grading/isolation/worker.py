@@ -13,7 +13,9 @@ Wire protocol: each message is an 8-byte little-endian length followed by a
 pickle (protocol 5). Grader -> worker (trusted, plain pickle)::
 
     ("define", [(cell_index, source), ...], wall_seconds, cpu_seconds)
-    ("call", call_id, name, args, kwargs, cpu_seconds)
+    ("call", call_id, name, args, kwargs, cpu_seconds, answered_names)
+    ("answer", value, observation, rng_states) | ("raise", info) | ("own", reason)
+                                              # replies to a depcall, during a call
 
 Worker -> grader (untrusted: decoded with :func:`robolab.grading.wire.codec.loads`)::
 
@@ -24,6 +26,9 @@ Worker -> grader (untrusted: decoded with :func:`robolab.grading.wire.codec.load
     ("error", call_id, {"type", "bases", "message", "traceback"}, observation)
     ("missing", call_id, name)
     ("exit", call_id, description)            # SystemExit / KeyboardInterrupt
+    ("depcall", call_id, name, args, kwargs, rngs)  # a call of an exercise below the one
+                                              # graded, answered by the grader's reference
+                                              # (robolab.grading.wire.depcall)
 
 Once student code has run, nothing this process says can be trusted: the
 grader enforces every limit itself and decodes with an allow-list.
@@ -43,8 +48,6 @@ HEADER = struct.Struct("<Q")
 MAX_TEXT = 20_000
 #: Top-level packages a submission must never import.
 FORBIDDEN_PACKAGES = frozenset({"solutions", "tests"})
-#: Name of the module the submission's definitions live in.
-SUBMISSION_MODULE = "submission"
 
 
 class RefuseAnswers:
@@ -122,19 +125,24 @@ def describe_exception(exc: BaseException) -> dict:
     return {"type": kind.__qualname__, "bases": bases, "message": _text(exc), "traceback": text}
 
 
-def define(
-    namespace: dict, cells: list[tuple[int, str]], wall_seconds: float, cpu_seconds: float
-) -> list[tuple[int, str, str]]:
+def define(notebook, cells: list[tuple[int, str]], wall_seconds: float, cpu_seconds: float):
     """Run the notebook's needed cells whole, in order, as a kernel would; return the failures.
 
-    See :func:`robolab.grading.loading.kernel.run_cells`: a cell that raises or does
-    not compile is recorded and the next cell still runs; the cell that uses up
-    the load budget (``wall_seconds``, ``cpu_seconds``) is stopped and named.
+    ``notebook`` is the :class:`robolab.grading.loading.kernel.Notebook` the worker
+    entered: the notebook runs as ``__main__`` with the scratch folder as its
+    folder. See :func:`robolab.grading.loading.kernel.run_cells`: a cell that raises
+    or does not compile is recorded and the next cell still runs; the cell that uses
+    up the load budget (``cpu_seconds`` here, ``wall_seconds`` on the grader's clock,
+    which sends ``SIGALRM``) is stopped and named.
     """
+    import signal
+
     from robolab.grading.loading import kernel
 
-    kernel.new_namespace(SUBMISSION_MODULE, namespace)
-    return kernel.run_cells(namespace, cells, wall_seconds, cpu_seconds, kernel.flush)
+    # The grader sends SIGALRM when the load's wall budget is spent on its clock (which leaves
+    # out the time this worker waited for a CPU): it stops a cell, and is ignored between cells.
+    signal.signal(signal.SIGALRM, signal.SIG_IGN)
+    return notebook.run(cells, wall_seconds, cpu_seconds, kernel.flush, wall_timer=False)
 
 
 def function_names(namespace: dict) -> list[str]:
@@ -219,6 +227,23 @@ def _call(
     write_frame(response_fd, payload)
 
 
+def _asker(request_fd: int, response_fd: int, call_id: int):
+    """Send a depcall of the running call to the grader and return its reply."""
+
+    def ask(message: tuple) -> tuple:
+        try:
+            payload = _dumps((message[0], call_id, *message[1:]))
+        except Exception as exc:  # noqa: BLE001 - arguments that are not plain data
+            return ("own", f"the arguments cannot be sent: {_text(exc)}")
+        write_frame(response_fd, payload)
+        frame = read_frame(request_fd)
+        if frame is None:
+            raise EOFError("the grader closed the request pipe during a call")
+        return pickle.loads(frame)  # noqa: S301 - from the grader, the trusted side
+
+    return ask
+
+
 def reap_children() -> None:
     """Reap the children the grader killed after the last call (the worker is their reaper)."""
     while True:
@@ -232,11 +257,12 @@ def reap_children() -> None:
 
 def serve(request_fd: int, response_fd: int) -> int:
     """Answer define and call requests until the grader closes the request pipe."""
-    import types
+    from robolab.grading.loading import kernel
 
-    module = types.ModuleType(SUBMISSION_MODULE)
-    sys.modules[SUBMISSION_MODULE] = module
-    namespace = module.__dict__
+    # The notebook's module, as a kernel holds it: `__main__`, in the scratch folder
+    # (the working folder the sandbox left writable), which is first on sys.path.
+    notebook = kernel.Notebook(os.getcwd()).enter()
+    namespace = notebook.namespace
     while True:
         frame = read_frame(request_fd)
         if frame is None:
@@ -244,7 +270,7 @@ def serve(request_fd: int, response_fd: int) -> int:
         reap_children()
         request = pickle.loads(frame)  # noqa: S301 - from the grader, the trusted side
         if request[0] == "define":
-            problems = define(namespace, *request[1:])
+            problems = define(notebook, *request[1:])
             for stream in (sys.stdout, sys.stderr):
                 stream.flush()
             _send(response_fd, ("defined", function_names(namespace), problems))
@@ -252,9 +278,14 @@ def serve(request_fd: int, response_fd: int) -> int:
             from robolab.grading.loading.delegation import (
                 forbidden,  # the library's copy of the exercise
             )
+            from robolab.grading.wire.depcall import answered
 
-            with forbidden(request[2], namespace):  # disabled while this exercise runs
-                _call(response_fd, namespace, *request[1:])
+            call_id, name, args, kwargs, cpu_seconds, *below = request[1:]
+            ask = _asker(request_fd, response_fd, call_id)
+            # The library's copy of the exercise is disabled while it runs; the exercises
+            # below it are answered by the grader's reference (a mistake costs once).
+            with forbidden(name, namespace), answered(below[0] if below else (), namespace, ask):
+                _call(response_fd, namespace, call_id, name, args, kwargs, cpu_seconds)
         else:
             raise ValueError(f"unknown request {request[0]!r}")
 

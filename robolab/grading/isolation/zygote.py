@@ -319,7 +319,7 @@ class _Server:
             pass
         if self.role == "worker" and os.geteuid() == 0:
             from robolab.grading.isolation import sandbox
-            from robolab.grading.running.proxy import _kill_uid
+            from robolab.grading.running.channel import _kill_uid
 
             _kill_uid(sandbox.worker_uid(pid))
 

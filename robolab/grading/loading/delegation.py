@@ -16,24 +16,33 @@ worker does not know which lab it grades, so :func:`forbidden_for` takes the
 union over labs of an exercise name (a name shared by two labs, such as
 ``low_variance_resample``, is the same exercise in both).
 
-What is replaced, for each dotted name ``robolab.bag.PoseTrack.at``:
+What is guarded is the *function object* each dotted name resolves to, not the
+name: its ``__code__`` is swapped for code that raises, and put back afterwards.
+Every way of reaching that object therefore refuses, however it was taken:
 
-- the attribute itself (the module's function, the class's method), so
-  ``import robolab.bag as b; b.PoseTrack.at(...)`` and bound methods made
-  during the call fail;
-- every reference to it in the submission's namespace: ``from robolab.geometry
-  import transform_points`` binds the function under the student's own name
-  (``as tp`` too), and so does a bound method stored at module level.
+- the module attribute and any other module that holds it
+  (``robolab.sim.clearance_field`` is ``robolab.sim.run.clearance_field``;
+  ``filterpy.monte_carlo.systematic_resample`` is
+  ``filterpy.monte_carlo.resampling.systematic_resample``), a module alias
+  (``import filterpy.monte_carlo.resampling as _mc``);
+- every name in the submission bound to it (``from robolab.geometry import
+  transform_points as tp``), copies taken at import time (a list, a dict, a
+  ``functools.partial``, a default argument), bound methods (made before or
+  during the call) and, for a property, its getter.
 
-Library code that imported the function under its own name (``from
-robolab.geometry import transform_points`` inside :mod:`robolab.bag`) keeps its
-reference: the table lists every public entry point that computes the
-exercise's answer, so a student cannot reach it through another door.
+Library code that calls the function refuses too while the exercise is graded:
+the table lists functions that compute the exercise's answer, so a library
+path that reaches one is the same delegation. What no guard can tell from the
+student's own work is a *re-creation* of the function (its source copied or
+``exec``-ed, ``types.FunctionType`` on its code): the hidden tests grade what
+such a copy computes. An entry that is not a Python function (a C function) is
+replaced by name, in its owner and the submission's namespace, as a fallback.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import importlib
 import sys
 import types
@@ -82,6 +91,20 @@ FORBIDDEN: dict[str, dict[str, list[str]]] = {
     "ekf_slam": {
         "predict": ["robolab.fiducials.unicycle"],
         "observation": ["robolab.fiducials._range_bearing"],
+    },
+    "graph_slam": {
+        # graph_objective stays allowed: it returns only the scalar F, which no exercise
+        # returns alone (optimize_graph may record it in its history)
+        "pose_pose_error": [
+            "robolab.geometry.relative",
+            "robolab.geometry.inverse",
+            "robolab.geometry.compose",
+            "robolab.evaluation._pose_pose_errors",
+        ],
+        "pose_landmark_error": [
+            "robolab.geometry.transform_points",
+            "robolab.evaluation._pose_landmark_errors",
+        ],
     },
     "demo": {
         "wrap": ["robolab.geometry.wrap_angle", "robolab.geometry.angle_diff"],
@@ -160,15 +183,53 @@ class _BlockImports:
         return None
 
 
+def _message(dotted: str, exercise: str) -> str:
+    return (
+        f"this exercise asks you to write {exercise} yourself; {dotted} is not "
+        f"available while {exercise} is graded"
+    )
+
+
 def _refusal(dotted: str, exercise: str):
     def refuse(*args, **kwargs):
-        raise DelegationError(
-            f"this exercise asks you to write {exercise} yourself; {dotted} is not "
-            f"available while {exercise} is graded"
-        )
+        raise DelegationError(_message(dotted, exercise))
 
     refuse.__name__ = refuse.__qualname__ = dotted.rsplit(".", 1)[-1]
     return refuse
+
+
+@functools.lru_cache(maxsize=256)
+def _refusing_code(message: str, free: int, name: str) -> types.CodeType:
+    """Code that raises DelegationError(message), with ``free`` free variables (a closure's
+    code can only be swapped for code with as many) and the function's ``name``."""
+    cells = [f"_cell{i}" for i in range(free)]
+    # The error class is looked up when the code runs, in the *library's* globals: through
+    # the import system, not a global name the library module does not have.
+    raise_it = (
+        "raise __import__('robolab.grading.loading.delegation', None, None, ['DelegationError'])"
+        f".DelegationError({message!r})"
+    )
+    if cells:
+        body = f"    if False:\n        {', '.join(cells)}\n    {raise_it}"
+        source = f"def outer():\n  {' = '.join(cells)} = None\n  def refuse(*args, **kwargs):\n"
+        source += "\n".join("  " + line for line in body.splitlines()) + "\n  return refuse\n"
+    else:
+        source = f"def refuse(*args, **kwargs):\n    {raise_it}\n"
+    scope: dict = {}
+    exec(compile(source, "<robolab delegation guard>", "exec"), scope)  # noqa: S102 - our text
+    refuse = scope["outer"]() if cells else scope["refuse"]
+    return refuse.__code__.replace(co_name=name, co_qualname=name)
+
+
+def _functions(value: object) -> list[types.FunctionType]:
+    """The Python functions behind a table entry (a property's accessors, a wrapper's target)."""
+    if isinstance(value, property):
+        found = [value.fget, value.fset, value.fdel]
+    elif isinstance(value, (staticmethod, classmethod)):
+        found = [value.__func__]
+    else:
+        found = [value, getattr(value, "__wrapped__", None)]
+    return [f for f in found if type(f) is types.FunctionType]
 
 
 def _same(candidate: object, original: object) -> bool:
@@ -184,13 +245,16 @@ def _same(candidate: object, original: object) -> bool:
 def forbidden(exercise: str, namespace: dict) -> Iterator[None]:
     """While the block runs, the library's equivalents of ``exercise`` raise DelegationError.
 
-    ``namespace`` is the submission's module namespace; names in it bound to a
-    forbidden function are replaced too. A forbidden name in a module nobody
-    has imported yet is not imported: importing that module fails during the
-    block instead. Everything is restored on exit, even when the block raises.
-    A dotted name that does not resolve (the library has moved on) is skipped:
+    Each function of the table is disabled in place (its code swapped), so every
+    alias, copy and bound method of it refuses (see the module docstring);
+    ``namespace`` (the submission's module namespace) only matters for an entry
+    that is not a Python function. A forbidden name in a module nobody has
+    imported yet is not imported: importing that module fails during the block
+    instead. Everything is restored on exit, even when the block raises. A
+    dotted name that does not resolve (the library has moved on) is skipped:
     ``tests/grading/loading/test_delegation.py`` keeps the table true.
     """
+    swapped: dict[int, tuple[types.FunctionType, types.CodeType]] = {}
     undo: list[tuple[object, str, object]] = []
     names = forbidden_for(exercise) if isinstance(exercise, str) else []
     blocker = None
@@ -204,13 +268,22 @@ def forbidden(exercise: str, namespace: dict) -> Iterator[None]:
                 if module is not None:
                     unloaded.setdefault(module, dotted)
                 continue
-            raw = original.fget if isinstance(original, property) else original
+            functions = _functions(original)
+            for function in functions:
+                if id(function) not in swapped:
+                    code = function.__code__
+                    swapped[id(function)] = (function, code)
+                    function.__code__ = _refusing_code(
+                        _message(dotted, exercise), len(code.co_freevars), code.co_name
+                    )
+            if functions:
+                continue
+            # Not a Python function: replace it by name, where it is and in the submission.
             refuse = _refusal(dotted, exercise)
-            replacement = property(refuse) if isinstance(original, property) else refuse
             undo.append((owner, attr, original))
-            setattr(owner, attr, replacement)
+            setattr(owner, attr, refuse)
             for key, value in list(namespace.items()):
-                if _same(value, raw) or _same(value, original):
+                if _same(value, original):
                     undo.append((namespace, key, value))
                     namespace[key] = refuse
         if unloaded:
@@ -220,6 +293,8 @@ def forbidden(exercise: str, namespace: dict) -> Iterator[None]:
     finally:
         if blocker is not None:
             sys.meta_path.remove(blocker)
+        for function, code in swapped.values():
+            function.__code__ = code
         for owner, attr, original in reversed(undo):
             if owner is namespace:
                 namespace[attr] = original

@@ -14,11 +14,17 @@ Transformed cells call ``get_ipython()``: :class:`Shell` answers the calls a
 kernel would, for grading. ``%time STATEMENT`` runs the statement in the
 namespace (its bindings persist, as in IPython); ``%timeit STATEMENT`` runs it
 once in a throwaway local scope (IPython's timing function keeps nothing
-either); every other line magic (``%matplotlib``, ``%load_ext``, ``%pip``),
-``!cmd`` and cell magic does nothing, and ``x = !cmd`` gives an empty list.
+either); ``%%writefile`` and ``%run`` work inside the notebook's working folder
+(:mod:`robolab.grading.loading.magics`); ``%store -r`` restores nothing (a fresh
+kernel has nothing stored); every other line magic (``%matplotlib``,
+``%load_ext``, ``%pip``), ``!cmd`` and cell magic does nothing, and
+``x = !cmd`` gives an empty list.
 
-Used by the grading worker (isolated) and by ``robolab check`` (in the
-student's own process), so both load a notebook identically.
+:class:`Notebook` is the module the cells run in, as a kernel holds it: named
+``__main__`` and registered as ``sys.modules["__main__"]``, with its working
+folder as the current directory and first on ``sys.path``. The grading worker
+(isolated, its scratch folder) and ``robolab check`` (the student's own
+process, a temporary folder) both load a notebook through it, identically.
 """
 
 from __future__ import annotations
@@ -27,15 +33,26 @@ import __future__
 import ast
 import builtins
 import functools
+import importlib
 import linecache
 import operator
+import os
 import signal
 import sys
 import time
 import traceback
+import types
 from collections.abc import Callable
 
-__all__ = ["LoadTimeout", "Shell", "load_budget", "new_namespace", "run_cells"]
+from robolab.grading.loading import magics
+
+__all__ = ["LoadTimeout", "Notebook", "Shell", "load_budget", "new_namespace", "run_cells"]
+
+#: The name a notebook's module has in a kernel (and in ``sys.modules``).
+MAIN = "__main__"
+
+#: Cell magics that write their body to a file (``%%file`` is IPython's alias).
+WRITE_MAGICS = frozenset({"writefile", "file"})
 
 _FUTURE_FLAGS = functools.reduce(
     operator.or_, (getattr(__future__, f).compiler_flag for f in __future__.all_feature_names)
@@ -60,26 +77,40 @@ class LoadTimeout(BaseException):
 
 
 class Shell:
-    """What ``get_ipython()`` returns to a cell run for grading (see the module docstring)."""
+    """What ``get_ipython()`` returns to a cell run for grading (see the module docstring).
 
-    def __init__(self, namespace: dict) -> None:
+    ``folder`` is the notebook's working folder (None: the current directory),
+    the only one its file magics read or write.
+    """
+
+    def __init__(self, namespace: dict, folder: str | None = None) -> None:
         self.user_ns = namespace
+        self.folder = folder
 
     def run_line_magic(self, magic_name: str, line: str, _stack_depth: int = 1) -> object:
         if magic_name == "time":
             return self._run(line, self.user_ns)
         if magic_name == "timeit":
             self._run(line, {})  # once, its names local to the timing run
+        if magic_name == "run":
+            magics.run_file(self._folder(), line, self.user_ns, self._run_ipython)
         return None
 
     def run_cell_magic(self, magic_name: str, line: str, cell: str) -> None:
-        return None  # Python-running cell magics were unwrapped when the notebook was read
+        # Python-running cell magics were unwrapped when the notebook was read.
+        if magic_name in WRITE_MAGICS:
+            magics.write_file(self._folder(), line, cell)
+            importlib.invalidate_caches()  # an `import` right after finds the new module
+        return None
 
     def system(self, cmd: str) -> None:
         return None
 
     def getoutput(self, cmd: str, split: bool = True, depth: int = 0) -> list:
         return []
+
+    def _folder(self) -> str:
+        return self.folder if self.folder is not None else os.getcwd()
 
     def _run(self, statement: str, local: dict) -> object:
         try:
@@ -89,23 +120,103 @@ class Shell:
             return None
         return eval(code, self.user_ns, local)  # noqa: S307 - the student's own statement
 
+    def _run_ipython(self, sources: list[str], filename: str) -> None:
+        """A ``.ipy`` file or a notebook run by ``%run``: its cells, in the notebook's namespace."""
+        from robolab.grading.loading.notebook import to_python
+
+        for source in sources:
+            python = to_python(source)
+            if python is not None:
+                exec(compile(python, filename, "exec", dont_inherit=True), self.user_ns)  # noqa: S102
+
 
 def _display(*objects: object, **options: object) -> None:
     """``display()`` of a kernel: rich output goes nowhere when grading."""
     return None
 
 
-def new_namespace(module_name: str, namespace: dict | None = None) -> dict:
+def new_namespace(
+    module_name: str, namespace: dict | None = None, folder: str | None = None
+) -> dict:
     """A module namespace whose builtins include ``get_ipython`` and ``display``, as in a kernel.
 
     They live in the namespace's own ``__builtins__``, so they are no
-    definitions of the notebook.
+    definitions of the notebook. ``folder`` is its working folder (see :class:`Shell`).
     """
     namespace = {} if namespace is None else namespace
     namespace.setdefault("__name__", module_name)
-    shell = Shell(namespace)
+    shell = Shell(namespace, folder)
     namespace["__builtins__"] = dict(vars(builtins), get_ipython=lambda: shell, display=_display)
     return namespace
+
+
+class Notebook:
+    """The module a notebook runs in, as a Jupyter kernel holds it, with ``folder`` as its folder.
+
+    While entered, the module is ``sys.modules["__main__"]`` (``__name__ ==
+    "__main__"``; ``sys.modules[__name__]`` and ``import __main__`` are the
+    notebook; pickle finds its classes), ``folder`` is the current directory and
+    the first entry of ``sys.path`` (the notebook's folder in Jupyter: a module
+    written there with ``%%writefile`` imports). :meth:`exit` puts back what it
+    changed and forgets the modules imported from ``folder``; the grading
+    worker never exits (it is the notebook's process).
+
+    Parameters
+    ----------
+    folder : str
+        An existing folder the notebook may write in: the worker's scratch
+        folder, or a temporary folder for ``robolab check``.
+    """
+
+    def __init__(self, folder: str | os.PathLike) -> None:
+        self.folder = os.path.realpath(folder)
+        if not os.path.isdir(self.folder):
+            raise NotADirectoryError(f"folder must be an existing folder, got {folder!s}")
+        self.module = types.ModuleType(MAIN)
+        self.namespace = new_namespace(MAIN, self.module.__dict__, self.folder)
+        self._saved: tuple | None = None
+
+    def enter(self) -> Notebook:
+        self._saved = (sys.modules.get(MAIN), os.getcwd(), set(sys.modules))
+        sys.modules[MAIN] = self.module
+        os.chdir(self.folder)
+        sys.path.insert(0, self.folder)
+        return self
+
+    def exit(self) -> None:
+        if self._saved is None:
+            return
+        main, cwd, modules = self._saved
+        self._saved = None
+        if main is not None:
+            sys.modules[MAIN] = main
+        os.chdir(cwd)
+        if self.folder in sys.path:
+            sys.path.remove(self.folder)
+        for name in set(sys.modules) - modules:  # the notebook's own modules, not the library's
+            origin = getattr(sys.modules.get(name), "__file__", None) or ""
+            if os.path.isabs(origin) and magics.inside(self.folder, origin) is not None:
+                del sys.modules[name]
+
+    def __enter__(self) -> Notebook:
+        return self.enter()
+
+    def __exit__(self, *exc: object) -> None:
+        self.exit()
+
+    def run(
+        self,
+        cells: list[tuple[int, str]],
+        wall_seconds: float,
+        cpu_seconds: float,
+        on_done: Callable[[], None] | None = None,
+        *,
+        wall_timer: bool = True,
+    ) -> list[tuple[int, str, str]]:
+        """:func:`run_cells` in this notebook's namespace."""
+        return run_cells(
+            self.namespace, cells, wall_seconds, cpu_seconds, on_done, wall_timer=wall_timer
+        )
 
 
 def run_cells(
@@ -114,6 +225,8 @@ def run_cells(
     wall_seconds: float,
     cpu_seconds: float,
     on_done: Callable[[], None] | None = None,
+    *,
+    wall_timer: bool = True,
 ) -> list[tuple[int, str, str]]:
     """Run each cell whole, in order; return ``(cell_index, kind, message)`` of those that failed.
 
@@ -121,6 +234,9 @@ def run_cells(
     budget of ``wall_seconds`` and ``cpu_seconds`` (see :func:`load_budget`):
     the cell that exhausts it is stopped, and the cells after it are not run.
     ``on_done`` runs after each cell (the worker flushes the student's output there).
+    With ``wall_timer=False`` no wall-clock timer is armed: the caller sends ``SIGALRM``
+    itself once ``wall_seconds`` are spent (the grader does, on a clock that leaves out
+    the time the worker waited for a CPU, which this process cannot see).
     """
     problems = []
     flags = 0
@@ -144,7 +260,9 @@ def run_cells(
             problems.append((cell_index, "syntax", f"it does not run: {_msg(exc)}{line}"))
             continue
         try:
-            with _time_limit(wall_end - time.monotonic(), cpu_end - time.process_time()):
+            with _time_limit(
+                wall_end - time.monotonic() if wall_timer else None, cpu_end - time.process_time()
+            ):
                 # Statement by statement, as IPython's run_ast_nodes: a `from __future__`
                 # import anywhere in a cell holds from there on, in later cells too.
                 for node in tree.body:
@@ -185,15 +303,18 @@ _SPENT = "the time allowed to load your notebook"
 
 
 class _time_limit:
-    """``LoadTimeout`` after ``wall`` seconds or ``cpu`` CPU seconds (again every 0.5 s after)."""
+    """``LoadTimeout`` after ``wall`` seconds or ``cpu`` CPU seconds (again every 0.5 s after).
+
+    ``wall=None``: no wall timer, but a ``SIGALRM`` sent by someone else still stops the cell.
+    """
 
     _TIMERS = (
         (signal.ITIMER_REAL, signal.SIGALRM, "wall"),
         (signal.ITIMER_PROF, signal.SIGPROF, "cpu"),
     )
 
-    def __init__(self, wall: float, cpu: float) -> None:
-        self.limits = (max(wall, 0.01), max(cpu, 0.01))
+    def __init__(self, wall: float | None, cpu: float) -> None:
+        self.limits = (0 if wall is None else max(wall, 0.01), max(cpu, 0.01))
         self.armed = False
         self.previous: list = []
 
@@ -212,7 +333,8 @@ class _time_limit:
             return self
         self.armed = True
         for (timer, _, _), seconds in zip(self._TIMERS, self.limits, strict=True):
-            signal.setitimer(timer, seconds, 0.5)
+            if seconds:
+                signal.setitimer(timer, seconds, 0.5)
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -20,13 +20,37 @@ Python is left as it is, which is what IPython's transformation does to it.
 from __future__ import annotations
 
 import ast
+import builtins
 import functools
 import json
 import re
 import symtable
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from robolab.grading.labs import LabError, read_submission
+from robolab.grading.loading.bindings import (
+    ALL,
+    code_strings,
+    is_opaque,
+    looks_up_by_value,
+    mutated,
+    mutated_inside,
+    name_strings,
+    note_written,
+    run_in_namespace,
+    scope_names,
+    statements,
+    surely_binds,
+    timed_statements,
+)
+from robolab.grading.loading.ipython_syntax import (
+    FILE_CELL_MAGICS,
+    _cell_magic,
+    _python_and_tree,
+    to_python,
+)
 
 __all__ = [
     "CellProblem",
@@ -41,14 +65,17 @@ __all__ = [
 #: Tag of the cells that hold exercise stubs (see DESIGN.md "Notebooks").
 EXERCISE_TAG = "exercise"
 
-#: Cell magics whose body runs as Python in the user's namespace, so its definitions persist.
-#: ``%%timeit`` is not one: its body runs inside a timing function (nothing it defines persists).
-PYTHON_CELL_MAGICS = frozenset({"time", "capture"})
+
+
+
+#: Names a notebook reads without binding them (a star import can still shadow them).
+_BUILTINS = frozenset(dir(__import__("builtins"))) | {"get_ipython", "display", "__name__"}
 
 #: Longest first line shown when naming a cell.
 LABEL_CHARS = 40
 
 _DEF_LINE = re.compile(r"^\s*(?:async\s+def|def|class)\s+([A-Za-z_]\w*)", re.MULTILINE)
+_WORD = re.compile(r"[A-Za-z_]\w*")
 
 
 class NotebookError(Exception):
@@ -147,75 +174,6 @@ def cell_label(cell_index: int, source: str) -> str:
     return f"cell {cell_index + 1}, `{first}`" if first else f"cell {cell_index + 1} (empty)"
 
 
-# --- IPython syntax -> Python ------------------------------------------------------------------
-
-
-@functools.lru_cache(maxsize=1)
-def _transformer():
-    from IPython.core.inputtransformer2 import TransformerManager  # ~0.4 s: only when needed
-
-    return TransformerManager()
-
-
-def to_python(source: str) -> str | None:
-    """A cell's source as the Python a kernel runs; None when the cell is not Python.
-
-    Plain Python is returned unchanged. Anything else goes through IPython's
-    own ``TransformerManager.transform_cell``: line magics become
-    ``get_ipython().run_line_magic(...)``, ``!cmd`` ``get_ipython().system(...)``,
-    ``x = !cmd`` ``get_ipython().getoutput(...)``. A cell magic that runs its
-    body as Python (``%%time``, ``%%capture``) becomes its body; any other cell
-    magic (``%%bash``, ``%%html``, ``%%timeit``, ``%%writefile``) defines no
-    Python name, so None.
-
-    The result may still not parse (the student's syntax error): that is for
-    the caller to find.
-    """
-    return _python_and_tree(source)[0]
-
-
-def _python_and_tree(source: str) -> tuple[str | None, ast.Module | SyntaxError | None]:
-    """:func:`to_python` and its parse (or the SyntaxError), parsing each text once."""
-    try:
-        return source, ast.parse(source)
-    except (SyntaxError, ValueError):  # ValueError: a NUL byte in the source
-        pass
-    try:
-        python = _transformer().transform_cell(source)
-    except Exception:  # noqa: BLE001 - IPython could not tokenize it: left for the parser to report
-        python = source
-    try:
-        tree = ast.parse(python)
-    except (SyntaxError, ValueError) as exc:
-        return python, exc if isinstance(exc, SyntaxError) else SyntaxError(str(exc))
-    magic = _cell_magic(tree)
-    if magic is None:
-        return python, tree
-    name, body = magic
-    return _python_and_tree(body) if name in PYTHON_CELL_MAGICS else (None, None)
-
-
-def _cell_magic(tree: ast.Module) -> tuple[str, str] | None:
-    """``(name, body)`` when transformed source is one ``run_cell_magic`` call."""
-    if len(tree.body) != 1 or not isinstance(tree.body[0], ast.Expr):
-        return None
-    args = _shell_call(tree.body[0].value, "run_cell_magic", 3)
-    return None if args is None else (args[0], args[2])
-
-
-def _shell_call(node: ast.AST, method: str, count: int) -> list[str] | None:
-    """The string arguments of ``get_ipython().<method>(...)`` with ``count`` of them, or None."""
-    if (
-        isinstance(node, ast.Call)
-        and isinstance(node.func, ast.Attribute)
-        and node.func.attr == method
-        and len(node.args) == count
-        and all(isinstance(a, ast.Constant) and isinstance(a.value, str) for a in node.args)
-    ):
-        return [a.value for a in node.args]
-    return None
-
-
 # --- what a cell binds and reads ---------------------------------------------------------------
 
 
@@ -225,151 +183,100 @@ class _Cell:
 
     index: int
     python: str | None
+    #: every name it may bind (or change) at module level
     binds: set[str] = field(default_factory=set)
+    #: the names it binds whatever branch runs (a binding in an `if`, `try`, loop or
+    #: `with suppress` body may not happen: it does not replace an earlier one)
+    sure: set[str] = field(default_factory=set)
     reads_now: set[str] = field(default_factory=set)
     reads_later: set[str] = field(default_factory=set)
     functions: list[str] = field(default_factory=list)
     #: function name -> the globals it assigns (``global X; X = ...``) when called
     global_writes: dict[str, set[str]] = field(default_factory=dict)
+    #: functions it defines that bind globals no analysis sees (``globals()[n] = ...``)
+    dynamic_writers: set[str] = field(default_factory=set)
     star: bool = False
+    #: it may bind any name: a star import, ``globals()``, ``exec``, ``setattr`` on the
+    #: module, ``%run``, ``%store -r``, or a call of a function that does one of these
+    opaque: bool = False
+    #: a ``%%writefile`` cell
+    writes_files: bool = False
+    #: it looks names up by a value known only when it runs (``globals()["_" + n]``):
+    #: it may read any function or class defined before it
+    reads_functions: bool = False
     #: its ``from __future__`` imports (they change how every later cell compiles)
     future: list[str] = field(default_factory=list)
     error: SyntaxError | None = None
 
 
-def _analyse(index: int, source: str) -> _Cell:
+def _analyse(index: int, source: str, files: dict[str, str] | None = None, depth: int = 0) -> _Cell:
+    """What one cell binds and reads; ``files`` maps each file the cells before it wrote
+    with ``%%writefile`` to its text (this cell's writes are added). ``depth`` counts
+    the code strings and files analysed inside one another (a file may run itself)."""
+    files = {} if files is None else files
     python, tree = _python_and_tree(source)
     cell = _Cell(index, python)
     if isinstance(tree, SyntaxError):
         cell.error = tree
     if not isinstance(tree, ast.Module):
         return cell
-    statements = _statements(python, tree)
+    magic = _cell_magic(tree)
+    cell.writes_files = magic is not None and magic[0] in FILE_CELL_MAGICS
+    if cell.writes_files:
+        note_written(files, tree)
+    found = statements(python, tree)
     if "run_line_magic" in python:
-        statements += _timed_statements(tree)  # `%time y = f()` binds y in the kernel
-    for node, text in statements:
-        try:
-            table = symtable.symtable(text, "<cell>", "exec")
-        except SyntaxError:  # e.g. `return` outside a function: Jupyter refuses the cell too
-            continue
-        binds, now, later = _scope_names(table)
-        changed = _mutated(node)  # `d[k] = v`, `obj.x = v`, `N += 1`: read, then rebind
-        now |= changed
-        binds |= changed
-        cell.reads_now |= now - cell.binds
-        cell.reads_later |= later
-        cell.binds |= binds
-        if isinstance(node, ast.ImportFrom) and any(a.name == "*" for a in node.names):
-            cell.star = True
-        if isinstance(node, ast.ImportFrom) and node.module == "__future__":
-            cell.future.append(ast.unparse(node))
-        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
-            cell.functions.append(node.name)
-            if binds - {node.name}:
-                cell.global_writes[node.name] = binds - {node.name}
+        found += timed_statements(tree)  # `%time y = f()` binds y in the kernel
+    for node, text in found:
+        _add_statement(cell, node, text)
+    written = is_opaque(tree, python)
+    cell.opaque = cell.star or written
+    if cell.opaque:
+        # Code it runs from strings (`exec("def f(): ...")`) or from files the notebook
+        # wrote (`%run -i helper.py`), and names it looks up by string
+        # (`globals()["_f_impl"]`): what it may bind and read.
+        for text in code_strings(tree) + run_in_namespace(tree, files) if depth < 3 else ():
+            sub = _analyse(index, text, dict(files), depth + 1)
+            cell.reads_now |= sub.reads_now - cell.binds
+            cell.reads_later |= sub.reads_later
+            cell.binds |= sub.binds
+        cell.reads_now |= name_strings(tree) - cell.binds
+        cell.reads_functions = looks_up_by_value(tree)
+    cell.dynamic_writers = {
+        node.name
+        for node in (tree.body if written else ())
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and is_opaque(node)
+    }
     return cell
 
 
-def _statements(python: str, tree: ast.Module) -> list[tuple[ast.stmt, str]]:
-    """Each top-level statement with its own source text (its lines, decorators included).
-
-    Statements sharing a line (``a = 1; b = a``) are unparsed instead.
-    """
-    lines = python.splitlines()
-    spans = []
-    for node in tree.body:
-        start = min([node.lineno] + [d.lineno for d in getattr(node, "decorator_list", [])])
-        spans.append((start, node.end_lineno or node.lineno))
-    out = []
-    for i, (node, (start, end)) in enumerate(zip(tree.body, spans, strict=True)):
-        shared = (i > 0 and spans[i - 1][1] >= start) or (
-            i + 1 < len(spans) and spans[i + 1][0] <= end
-        )
-        if shared or node.col_offset != 0:
-            out.append((node, ast.unparse(node)))
-        else:
-            out.append((node, "\n".join(lines[start - 1 : end]) + "\n"))
-    return out
-
-
-def _scope_names(table: symtable.SymbolTable) -> tuple[set[str], set[str], set[str]]:
-    """(bound at module level, read at once, read when a function runs) for one statement."""
-    binds: set[str] = set()
-    now: set[str] = set()
-    later: set[str] = set()
-    for symbol in table.get_symbols():
-        name = symbol.get_name()
-        if symbol.is_assigned() or symbol.is_imported() or symbol.is_namespace():
-            binds.add(name)
-        if symbol.is_referenced():
-            now.add(name)
-    for child in table.get_children():
-        _child_names(child, runs_now=True, binds=binds, now=now, later=later)
-    return binds, now, later
-
-
-#: symtable names of comprehension scopes (run at once, unlike ``lambda`` and ``def``).
-_COMPREHENSIONS = frozenset({"listcomp", "setcomp", "dictcomp", "genexpr"})
-
-
-def _child_names(
-    table: symtable.SymbolTable, *, runs_now: bool, binds: set, now: set, later: set
-) -> None:
-    # A class body and a comprehension run when the enclosing code runs; a function
-    # or lambda body only when called (then it sees the kernel's final globals).
-    kind = table.get_type()
-    kind = getattr(kind, "value", kind)  # an enum from Python 3.13
-    runs = runs_now and (kind == "class" or table.get_name() in _COMPREHENSIONS)
-    for symbol in table.get_symbols():
-        if symbol.is_declared_global() and symbol.is_assigned():
-            binds.add(symbol.get_name())  # `global X; X = ...` binds X when called
-        if symbol.is_global() and symbol.is_referenced():
-            (now if runs else later).add(symbol.get_name())
-    for child in table.get_children():
-        _child_names(child, runs_now=runs, binds=binds, now=now, later=later)
-
-
-def _mutated(node: ast.stmt) -> set[str]:
-    """Names a module-level statement changes from their previous value.
-
-    The roots of subscript and attribute targets (``d[k] = v``, ``obj.x = v``)
-    and the name of an augmented assignment (``N += 1``).
-    """
-    if isinstance(node, ast.AugAssign) and isinstance(node.target, ast.Name):
-        return {node.target.id}
-    if isinstance(node, ast.Assign):
-        targets = node.targets
-    elif isinstance(node, (ast.AugAssign, ast.AnnAssign)):
-        targets = [node.target]
-    elif isinstance(node, ast.Delete):
-        targets = node.targets
-    else:
-        return set()
-    roots = set()
-    for target in targets:
-        for sub in ast.walk(target):
-            if isinstance(sub, (ast.Subscript, ast.Attribute)) and isinstance(
-                sub.ctx, (ast.Store, ast.Del)
-            ):
-                base = sub.value
-                while isinstance(base, (ast.Subscript, ast.Attribute)):
-                    base = base.value
-                if isinstance(base, ast.Name):
-                    roots.add(base.id)
-    return roots
-
-
-def _timed_statements(tree: ast.Module) -> list[tuple[ast.stmt, str]]:
-    """The statements of ``%time STATEMENT`` line magics (they run in the user's namespace)."""
-    found = []
-    for node in ast.walk(tree):
-        args = _shell_call(node, "run_line_magic", 2)
-        if args is not None and args[0] == "time":
-            try:
-                found += [(n, ast.unparse(n)) for n in ast.parse(args[1]).body]
-            except (SyntaxError, ValueError):
-                pass
-    return found
+def _add_statement(cell: _Cell, node: ast.stmt, text: str) -> None:
+    """Add what one top-level statement binds and reads to ``cell``."""
+    try:
+        table = symtable.symtable(text, "<cell>", "exec")
+    except SyntaxError:  # e.g. `return` outside a function: Jupyter refuses the cell too
+        return
+    binds, now, later = scope_names(table)
+    changed = mutated(node)  # `d[k] = v`, `obj.x = v`, `N += 1`: read, then rebind
+    maybe_changed = mutated_inside(node) - changed
+    now |= changed | maybe_changed
+    sure = surely_binds([node])
+    sure = (binds if sure is ALL else sure & binds) | changed
+    if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+        sure &= {node.name}  # its `global X` assignments happen when it is called, if ever
+    binds |= changed | maybe_changed
+    cell.reads_now |= now - cell.binds
+    cell.reads_later |= later
+    cell.binds |= binds
+    cell.sure |= sure
+    if isinstance(node, ast.ImportFrom) and any(a.name == "*" for a in node.names):
+        cell.star = True
+    if isinstance(node, ast.ImportFrom) and node.module == "__future__":
+        cell.future.append(ast.unparse(node))
+    if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+        cell.functions.append(node.name)
+        if binds - {node.name}:
+            cell.global_writes[node.name] = binds - {node.name}
 
 
 # --- which cells are needed --------------------------------------------------------------------
@@ -379,45 +286,65 @@ def needed_cells(cells: list[_Cell], graded: Iterable[str]) -> list[_Cell]:
     """The cells a kernel must run for ``graded`` and every name they use, in notebook order.
 
     A name read when a cell runs (top level, decorators, defaults, class bodies)
-    resolves to the last cell binding it *before* that cell; a global read inside
-    a function resolves when it is called, so to the last binding cell of the
-    whole notebook. Cells with a star import bind names no analysis can see:
-    they are always needed.
+    resolves to the cells binding it *before* that cell; a global read inside a
+    function resolves when it is called, so to the cells binding it anywhere. In
+    both cases the cells are taken from the last one back, up to and including the
+    last that binds the name whatever branch runs (:attr:`_Cell.sure`): a binding
+    that may not happen (``if False:``, ``try: from old import f except
+    ImportError: pass``) does not replace the one before it, so both run, in
+    order, and Python decides. A cell whose bindings cannot be known
+    (:attr:`_Cell.opaque`) may bind any name, so it is taken like such a binding;
+    a builtin name nothing binds only a star import can shadow. ``%%writefile``
+    cells always run (any cell may read the files they write).
     """
     writers: dict[str, set[str]] = {}
+    dynamic: set[str] = set()
     for cell in cells:
         writers.update(cell.global_writes)
-    for cell in cells:  # a cell calling `setup()` binds the globals setup() assigns
+        dynamic |= cell.dynamic_writers
+    for cell in cells:  # a cell calling `setup()` may bind the globals setup() assigns
         for name in cell.reads_now & writers.keys():
             cell.binds |= writers[name]
+        if cell.reads_now & dynamic:  # `@export` that writes `globals()`
+            cell.opaque = True
     binders: dict[str, list[int]] = {}
     for position, cell in enumerate(cells):
         for name in cell.binds:
             binders.setdefault(name, []).append(position)
+    opaque = [p for p, cell in enumerate(cells) if cell.opaque]
+    star = [p for p, cell in enumerate(cells) if cell.star]
+    candidates: dict[str, list[int]] = {}
     needed: set[int] = set()
     todo: list[int] = []
 
-    def last_binder(name: str, before: int | None) -> None:
-        for position in reversed(binders.get(name, [])):
-            if before is None or position < before:
-                if position not in needed:
-                    needed.add(position)
-                    todo.append(position)
+    def resolve(name: str, before: int | None) -> None:
+        if name not in candidates:
+            own = binders.get(name, [])
+            extra = star if name in _BUILTINS and not own else opaque
+            candidates[name] = sorted(set(own) | set(extra))
+        for position in reversed(candidates[name]):
+            if before is not None and position >= before:
+                continue
+            if position not in needed:
+                needed.add(position)
+                todo.append(position)
+            if name in cells[position].sure:
                 return
 
     for name in graded:
-        last_binder(name, None)
-    for position, cell in enumerate(cells):
-        if cell.star and todo:
-            needed.add(position)
-            todo.append(position)
+        resolve(name, None)
     while todo:
         position = todo.pop()
         cell = cells[position]
-        for name in cell.reads_now:
-            last_binder(name, position)
+        reads_now = set(cell.reads_now)
+        if cell.reads_functions:  # it may read any function defined before it
+            reads_now.update(n for c in cells[:position] for n in c.functions)
+        for name in reads_now:
+            resolve(name, position)
         for name in cell.reads_later:
-            last_binder(name, None)
+            resolve(name, None)
+    if needed:
+        needed |= {p for p, cell in enumerate(cells) if cell.writes_files}
     return [cells[p] for p in sorted(needed)]
 
 
@@ -430,7 +357,7 @@ def lab_exercises(lab: str | None) -> tuple[str, ...]:
     """
     if not lab:
         return ()
-    from robolab.grading.labs import Lab, LabError, project_root
+    from robolab.grading.labs import Lab, project_root
 
     try:
         found = Lab(lab, project_root())
@@ -475,10 +402,10 @@ def _text(source: object) -> str:
 
 
 def _read(path: Path) -> dict:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise NotebookError(f"{path}: cannot read the notebook: {exc.strerror or exc}") from exc
+    try:  # never blocks on a fifo, never reads a device or a huge file without end
+        text = read_submission(path).decode("utf-8")
+    except LabError as exc:
+        raise NotebookError(str(exc)) from None
     except UnicodeDecodeError as exc:
         raise NotebookError(f"{path}: is not a notebook: not UTF-8 text ({exc.reason})") from exc
     try:
@@ -488,6 +415,10 @@ def _read(path: Path) -> dict:
             f"{path}: is not a notebook: not valid JSON "
             f"(line {exc.lineno} column {exc.colno}: {exc.msg})"
         ) from exc
+    except RecursionError:
+        raise NotebookError(f"{path}: is not a notebook: its JSON is nested too deeply") from None
+    except ValueError as exc:  # a number of more digits than Python converts
+        raise NotebookError(f"{path}: is not a notebook: not valid JSON ({exc})") from None
     if not isinstance(nb, dict) or not isinstance(nb.get("cells"), list):
         raise NotebookError(f"{path}: is not a notebook: it has no list of cells")
     if not isinstance(nb.get("nbformat"), int) or nb["nbformat"] < 4:
@@ -542,6 +473,7 @@ def load_notebook(
         )
 
     cells: list[_Cell] = []
+    files: dict[str, str] = {}  # what the %%writefile cells so far wrote
     raw: dict[int, str] = {}
     labels: dict[int, str] = {}
     exercise_cells: list[int] = []
@@ -562,7 +494,7 @@ def load_notebook(
             exercise_cells.append(index)
         raw[index] = source
         labels[index] = cell_label(index, source)
-        cells.append(_analyse(index, source))
+        cells.append(_analyse(index, source, files))
 
     if graded is None:
         names = [] if every_function else list(lab_exercises(lab or meta_lab))
@@ -582,11 +514,17 @@ def load_notebook(
 
     needed = needed_cells(cells, names)
     wanted = set(names) | {n for cell in needed for n in cell.reads_now | cell.reads_later}
-    problems = [
-        CellProblem(cell.index, "syntax", _syntax_message(cell.error), labels[cell.index])
-        for cell in cells
-        if cell.error is not None and set(_DEF_LINE.findall(raw[cell.index])) & wanted
-    ]
+    # A cell that does not parse binds nothing: name it when it defines a graded function
+    # or mentions a name the needed cells use and no cell binds (an imports cell).
+    unbound = wanted - {n for cell in cells for n in cell.binds} - set(dir(builtins))
+    problems = []
+    for cell in cells:
+        if cell.error is None:
+            continue
+        missing = sorted(unbound & set(_WORD.findall(raw[cell.index])))
+        if missing or set(_DEF_LINE.findall(raw[cell.index])) & wanted:
+            message = _syntax_message(cell.error, missing)
+            problems.append(CellProblem(cell.index, "syntax", message, labels[cell.index]))
     # A skipped cell's `from __future__` imports still hold in the cells after it.
     chosen = {cell.index for cell in needed}
     kept = [
@@ -627,7 +565,12 @@ def _joined(cells: list[tuple[int, str]]) -> str:
     return text + "\n" if text else ""
 
 
-def _syntax_message(exc: SyntaxError) -> str:
+def _syntax_message(exc: SyntaxError, needed: Sequence[str] = ()) -> str:
     where = f"line {exc.lineno}" if exc.lineno else "somewhere"
     text = f": {exc.text.strip()}" if exc.text and exc.text.strip() else ""
-    return f"it does not parse, so nothing in it is defined: {exc.msg} ({where}{text})"
+    uses = (
+        f"; your graded functions use {', '.join(needed)}, which only this cell would define"
+        if needed
+        else ""
+    )
+    return f"it does not parse, so nothing in it is defined: {exc.msg} ({where}{text}){uses}"

@@ -20,32 +20,36 @@ fresh worker with the notebook's definitions reloaded.
 
 from __future__ import annotations
 
-import builtins
-import os
 import pickle
-import select
-import shutil
-import signal
-import subprocess
 import sys
-import tempfile
-import threading
 import time
 import warnings
-import weakref
-from dataclasses import dataclass
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import robolab
-from robolab.grading.isolation import processes, sandbox
-from robolab.grading.isolation.worker import HEADER
+from robolab.grading.isolation import sandbox
 from robolab.grading.loading.kernel import load_budget
 from robolab.grading.loading.notebook import CellProblem, LoadedNotebook, load_notebook
+from robolab.grading.running.channel import _Output, _Worker
+from robolab.grading.running.errors import (
+    IsolationWarning,
+    MissingFunction,
+    ScratchExceeded,
+    StudentCodeError,
+    WorkerCrashed,
+    WorkerStartError,
+    WorkerTimeout,
+    student_error_class,
+)
+from robolab.grading.running.limits import Limits, reference_limits
 from robolab.grading.wire import codec, observe
 
+if TYPE_CHECKING:
+    from robolab.grading.running.answers import Answers
+
 __all__ = [
-    "reference_budget",
+    "reference_limits",
     "IsolationWarning",
     "Limits",
     "MissingFunction",
@@ -56,521 +60,6 @@ __all__ = [
     "WorkerTimeout",
     "open_submission",
 ]
-
-#: Without ``Limits.total_wall_seconds``, a submission's calls may take this many per-call
-#: wall limits in total.
-BUDGET_CALLS = 5
-#: A lab whose hidden tests state ``REFERENCE_SECONDS`` (the reference solution's call time)
-#: gives a submission this many times that, at least :data:`MIN_BUDGET_SECONDS` (and never
-#: more than :data:`BUDGET_CALLS` per-call limits): see :func:`reference_budget`.
-BUDGET_FACTOR = 8.0
-MIN_BUDGET_SECONDS = 60.0
-
-#: Largest message accepted from a worker (a result, in pickled form): the codec's limit.
-MAX_MESSAGE_BYTES = codec.LIMITS.max_bytes
-#: Seconds a worker may take to start and isolate itself (before student code runs).
-STARTUP_SECONDS = 30.0
-#: How often a waiting grader checks the worker's CPU time and liveness.
-POLL_SECONDS = 0.05
-
-
-# --- errors ------------------------------------------------------------------------------------
-
-
-class StudentCodeError(Exception):
-    """Raised by, or because of, student code.
-
-    Attributes
-    ----------
-    kind : str
-        The student's exception type name (``"ValueError"``), or ``"crash"``,
-        ``"timeout"``, ``"missing"``, ``"result"`` (a result that is not plain
-        data) or ``"protocol"`` (the worker broke the protocol).
-    message : str
-        What happened, in words that may be shown to the student.
-    student_traceback : str
-        The traceback from the worker (student code only), may be empty.
-    """
-
-    def __init__(self, message: str, *, kind: str = "error", student_traceback: str = "") -> None:
-        super().__init__(message)
-        self.kind = kind
-        self.message = message
-        self.student_traceback = student_traceback
-
-    def __str__(self) -> str:
-        return self.message
-
-
-class WorkerCrashed(StudentCodeError):
-    """The worker died: segfault, ``os._exit``, ``sys.exit``, memory limit, killed."""
-
-
-class WorkerTimeout(StudentCodeError):
-    """A call exceeded its wall-time or CPU-time limit."""
-
-
-class MissingFunction(StudentCodeError, AttributeError):
-    """The notebook does not define the function."""
-
-
-class WorkerStartError(RuntimeError):
-    """The worker could not be started or isolated: grading itself cannot run."""
-
-
-class IsolationWarning(UserWarning):
-    """The operating system does not isolate the worker as documented."""
-
-
-# Builtin exceptions a student's exception is re-raised as (together with
-# StudentCodeError), so that `pytest.raises(ValueError)` works across the boundary.
-_REBUILT = (
-    ArithmeticError,
-    AssertionError,
-    AttributeError,
-    BufferError,
-    EOFError,
-    FloatingPointError,
-    ImportError,
-    IndexError,
-    KeyError,
-    LookupError,
-    MemoryError,
-    ModuleNotFoundError,
-    NameError,
-    NotImplementedError,
-    OSError,
-    BlockingIOError,
-    ChildProcessError,
-    ConnectionError,
-    BrokenPipeError,
-    ConnectionAbortedError,
-    ConnectionRefusedError,
-    ConnectionResetError,
-    FileExistsError,
-    FileNotFoundError,
-    InterruptedError,
-    IsADirectoryError,
-    NotADirectoryError,
-    PermissionError,
-    ProcessLookupError,
-    TimeoutError,
-    OverflowError,
-    RecursionError,
-    ReferenceError,
-    RuntimeError,
-    SystemError,
-    TypeError,
-    UnboundLocalError,
-    UnicodeError,
-    ValueError,
-    ZeroDivisionError,
-)
-_BUILTIN_BY_NAME = {cls.__name__: cls for cls in _REBUILT}
-_student_classes: dict[str, type[StudentCodeError]] = {}
-
-
-def student_error_class(bases: list[str]) -> type[StudentCodeError]:
-    """The class a student exception is re-raised as, from its builtin base class names.
-
-    The first name that is a rebuildable builtin wins (``LinAlgError`` arrives
-    as ``["ValueError", "Exception", ...]``); without one, StudentCodeError.
-    """
-    for name in bases:
-        builtin = _BUILTIN_BY_NAME.get(name)
-        if builtin is None or getattr(builtins, name, None) is not builtin:
-            continue
-        cls = _student_classes.get(name)
-        if cls is None:
-            cls = type(f"Student{name}", (StudentCodeError, builtin), {"__module__": __name__})
-            _student_classes[name] = cls
-        return cls
-    return StudentCodeError
-
-
-# --- limits ------------------------------------------------------------------------------------
-
-
-@dataclass
-class Limits:
-    """Resource limits of a worker.
-
-    Attributes
-    ----------
-    cpu_seconds : float
-        CPU time per call (and for loading the notebook).
-    wall_seconds : float
-        Wall-clock time per call (and for loading the notebook).
-    memory_bytes : int
-        Address space of the worker (RLIMIT_AS).
-    max_processes : int
-        Processes and threads of the worker's uid (RLIMIT_NPROC).
-    max_output_bytes : int
-        stdout + stderr kept per submission; the rest is counted and dropped.
-    total_wall_seconds : float or None
-        Wall-clock time of all of a submission's calls together; once spent,
-        its remaining calls fail at once. None: :data:`BUDGET_CALLS` times
-        ``wall_seconds``; a lab whose hidden tests state the reference's time
-        (``REFERENCE_SECONDS``) gets :func:`reference_budget` of it.
-    """
-
-    cpu_seconds: float = 30.0
-    wall_seconds: float = 60.0
-    memory_bytes: int = 2 * 2**30
-    max_processes: int = 64
-    max_output_bytes: int = 2**20
-    total_wall_seconds: float | None = None
-
-    @property
-    def budget_seconds(self) -> float:
-        """The total wall time of a submission's calls."""
-        if self.total_wall_seconds is not None:
-            return self.total_wall_seconds
-        return BUDGET_CALLS * self.wall_seconds
-
-
-def reference_budget(limits: Limits, reference_seconds: float) -> float:
-    """A submission's total call time: a few times the reference's, bounded both ways.
-
-    ``max(MIN_BUDGET_SECONDS, BUDGET_FACTOR * reference_seconds)``, but never more than the
-    default :attr:`Limits.budget_seconds` (``BUDGET_CALLS`` per-call wall limits). The floor
-    keeps a correct but slower solution (or a loaded grading machine) from losing points.
-    """
-    if not reference_seconds > 0:
-        raise ValueError(f"reference_seconds must be > 0, got {reference_seconds!r}")
-    return min(limits.budget_seconds, max(MIN_BUDGET_SECONDS, BUDGET_FACTOR * reference_seconds))
-
-
-# --- output ------------------------------------------------------------------------------------
-
-
-class _Output:
-    """A bounded buffer for what student code prints, shared by successive workers."""
-
-    def __init__(self, limit: int) -> None:
-        self.limit = limit
-        self.data = bytearray()
-        self.dropped = 0
-        self.lock = threading.Lock()
-
-    def drain(self, fd: int) -> None:
-        # Reads until end of file, keeping only `limit` bytes: a flood never
-        # fills the grader's memory and never blocks the worker on a full pipe.
-        try:
-            while True:
-                chunk = os.read(fd, 1 << 16)
-                if not chunk:
-                    break
-                with self.lock:
-                    room = self.limit - len(self.data)
-                    self.data += chunk[: max(room, 0)]
-                    self.dropped += max(len(chunk) - max(room, 0), 0)
-        finally:
-            os.close(fd)
-
-    def text(self) -> str:
-        with self.lock:
-            text = self.data.decode("utf-8", errors="replace")
-            if self.dropped:
-                text += f"\n[... {self.dropped} more bytes of output were dropped]\n"
-        return text
-
-
-# --- one worker process ------------------------------------------------------------------------
-
-
-class _Worker:
-    """One running worker: start, exchange messages under deadlines, kill everything."""
-
-    def __init__(self, limits: Limits, output: _Output) -> None:
-        self.limits = limits
-        self.base = Path(tempfile.mkdtemp(prefix="robolab-worker-"))
-        os.chmod(self.base, 0o711)  # a dropped uid must reach its work directory
-        workdir = self.base / "work"
-        workdir.mkdir()
-        repository = Path(robolab.__file__).resolve().parent.parent
-        self.plan = sandbox.plan_sandbox(
-            workdir,
-            readonly=[Path(robolab.__file__).resolve().parent, Path(robolab.DATA_DIR)],
-            forbidden=[repository / "solutions", repository / "tests"],
-            cpu_seconds=limits.cpu_seconds,
-            memory_bytes=limits.memory_bytes,
-            max_processes=limits.max_processes,
-        )
-        request_r, self.request_w = os.pipe()
-        self.response_r, response_w = os.pipe()
-        output_r, output_w = os.pipe()
-        env = {
-            "PATH": "/usr/bin:/bin",
-            "HOME": str(workdir),
-            "TMPDIR": str(workdir),
-            "LANG": "C.UTF-8",
-            "MPLBACKEND": "Agg",
-            "MPLCONFIGDIR": str(workdir / ".matplotlib"),
-            # One BLAS thread: threads count against the process limit, and the
-            # sandbox must be applied while the worker is single-threaded.
-            "OPENBLAS_NUM_THREADS": "1",
-            "OMP_NUM_THREADS": "1",
-            "MKL_NUM_THREADS": "1",
-            # Ray casting on its numpy path: numba's on-disk kernel cache cannot be
-            # written from here (read-only package, fresh HOME), so every worker would
-            # compile the kernels anew (seconds of CPU); the ranges are the same.
-            "ROBOLAB_RAYCAST": "numpy",
-        }
-        try:
-            self.process = _launch(self.plan, env, workdir, (request_r, response_w, output_w))
-        finally:
-            for fd in (request_r, response_w, output_w):
-                os.close(fd)
-        self.uid = sandbox.worker_uid(self.process.pid) if self.plan.drop_privileges else None
-        #: CPU time of the worker's whole process group, and the sweep after each call.
-        self.clock = processes.GroupClock(self.process.pid)
-        self._finalizer = weakref.finalize(
-            self, _reap, self.process, self.uid, (self.request_w, self.response_r), self.base
-        )
-        self.drainer = threading.Thread(
-            target=output.drain,
-            args=(output_r,),
-            daemon=True,
-            name=f"robolab-worker-{self.process.pid}-output",
-        )
-        self.drainer.start()
-        self.report: sandbox.SandboxReport | None = None
-        #: Wall-time budget of the current request (for the timeout message).
-        self.wall_seconds = limits.wall_seconds
-        self.calls = 0
-
-    # -- messages --
-
-    def send(self, message: tuple, deadline: float) -> None:
-        """Send a request; CPU time and new processes count against it from now on."""
-        self.clock.start_call()  # before the worker can act on the request
-        payload = pickle.dumps(message, protocol=5)
-        frame = memoryview(HEADER.pack(len(payload)) + payload)
-        poller = select.poll()
-        poller.register(self.request_w, select.POLLOUT)
-        while frame:
-            self._check_time(deadline, None)
-            if not poller.poll(POLL_SECONDS * 1000):
-                self._check_alive()
-                continue
-            try:
-                written = os.write(self.request_w, frame[: 1 << 16])
-            except BrokenPipeError:
-                self._check_alive(force=True)
-                raise
-            frame = frame[written:]
-
-    def receive(self, deadline: float, cpu_limit: float | None) -> Any:
-        """The next message, decoded with the codec, within the wall and CPU limits."""
-        buffer = bytearray()
-        size: int | None = None
-        poller = select.poll()
-        poller.register(self.response_r, select.POLLIN)
-        while size is None or len(buffer) < size:
-            self._check_time(deadline, cpu_limit)
-            if not poller.poll(POLL_SECONDS * 1000):
-                self._check_alive()
-                continue
-            chunk = os.read(self.response_r, 1 << 20)
-            if not chunk:
-                self._check_alive(force=True)
-            buffer += chunk
-            if size is None and len(buffer) >= HEADER.size:
-                size = HEADER.size + HEADER.unpack_from(buffer)[0]
-                if size > MAX_MESSAGE_BYTES + HEADER.size:
-                    raise StudentCodeError(
-                        f"the result is too large ({size - HEADER.size} bytes; "
-                        f"at most {MAX_MESSAGE_BYTES} are accepted)",
-                        kind="result",
-                    )
-        if len(buffer) > size:
-            raise StudentCodeError(
-                "the worker sent more than one answer to one request", kind="protocol"
-            )
-        self._end_call(cpu_limit)
-        return codec.loads(bytes(buffer[HEADER.size :]))
-
-    def _end_call(self, cpu_limit: float | None) -> None:
-        """Kill what the call started, charging its CPU time; check the scratch space."""
-        cpu, _ = self.clock.sweep()
-        if cpu_limit is not None and cpu > cpu_limit:
-            self.kill()
-            raise WorkerTimeout(
-                f"timed out: used more than {cpu_limit:g} s of CPU time "
-                f"(with the processes it started: {cpu:.1f} s)",
-                kind="timeout",
-            )
-        if self.report is not None and self.report.scratch != "tmpfs":
-            used = sandbox.directory_bytes(self.plan.workdir, sandbox.WORKDIR_BYTES)
-            if used > sandbox.WORKDIR_BYTES:
-                self.kill()
-                raise WorkerCrashed(
-                    f"wrote more than {sandbox.WORKDIR_BYTES // 2**20} MiB of files "
-                    "to its work directory",
-                    kind="crash",
-                )
-
-    # -- limits and death --
-
-    def cpu_seconds(self) -> float:
-        """CPU time used by the worker process itself, read from the kernel (trusted)."""
-        try:
-            with open(f"/proc/{self.process.pid}/stat", "rb") as f:
-                fields = f.read().rsplit(b")", 1)[1].split()
-        except (OSError, IndexError):
-            return 0.0
-        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-    def _check_time(self, deadline: float, cpu_limit: float | None) -> None:
-        if time.monotonic() > deadline:
-            self.kill()
-            raise WorkerTimeout(
-                f"timed out: took longer than {self.wall_seconds:g} s of wall time",
-                kind="timeout",
-            )
-        if cpu_limit is not None and self.clock.used() > cpu_limit:
-            self.kill()
-            raise WorkerTimeout(
-                f"timed out: used more than {cpu_limit:g} s of CPU time "
-                "(counting the processes it started)",
-                kind="timeout",
-            )
-
-    def _check_alive(self, force: bool = False) -> None:
-        if self.process.poll() is None and not force:
-            return
-        if self.process.poll() is None:
-            try:  # end of file usually means it is exiting: give it a moment to be reaped
-                self.process.wait(timeout=1)
-            except subprocess.TimeoutExpired:
-                pass
-        if self.process.poll() is None:
-            # The response pipe closed but the process lives: it broke the protocol.
-            self.kill()
-            raise WorkerCrashed("the worker closed its connection to the grader", kind="crash")
-        code = self.process.returncode
-        self.kill()
-        if code == -signal.SIGXCPU:
-            raise WorkerTimeout(
-                f"timed out: used more than {self.limits.cpu_seconds:g} s of CPU time",
-                kind="timeout",
-            )
-        if code < 0:
-            name = signal.Signals(-code).name if -code in signal.valid_signals() else str(-code)
-            raise WorkerCrashed(f"the worker process was killed by signal {name}", kind="crash")
-        raise WorkerCrashed(
-            f"the worker process exited with status {code} (os._exit, sys.exit or a fatal error)",
-            kind="crash",
-        )
-
-    def kill(self) -> None:
-        """Kill the worker and everything it started; idempotent."""
-        _kill_tree(self.process, self.uid)
-
-    def close(self) -> None:
-        """Kill, close the pipes, remove the temporary directory; idempotent."""
-        self._finalizer()
-        self.drainer.join(timeout=5)
-
-
-def _launch(
-    plan: sandbox.SandboxPlan, env: dict[str, str], workdir: Path, pipes: tuple[int, int, int]
-) -> Any:
-    """Fork a warm worker from the zygote (:mod:`~.isolation.zygote`), else start one cold.
-
-    Either way the worker runs :func:`robolab.grading.isolation.worker.main` in its own
-    session, with ``pipes`` (request read end, response and output write ends).
-    """
-    from robolab.grading.isolation import warm
-
-    for attempt in range(2):
-        workers = warm.shared()
-        if workers is None:
-            break
-        try:
-            return workers.spawn({"plan": plan.to_dict(), "env": env, "cwd": str(workdir)}, pipes)
-        except warm.ZygoteError as exc:
-            warm.reset_shared(None)  # it died or broke: the next attempt starts a fresh one
-            if attempt:
-                warnings.warn(f"robolab grading: this worker starts cold: {exc}", stacklevel=3)
-    # Cold: a fresh interpreter, seeded with the font cache so it does not rebuild it.
-    plan.seed_files = {f".matplotlib/{p.name}": str(p) for p in _matplotlib_font_caches()}
-    request_r, response_w, output_w = pipes
-    config = {"request_fd": request_r, "response_fd": response_w, "plan": plan.to_dict()}
-    return subprocess.Popen(
-        [sys.executable, "-I", "-B", "-m", "robolab.grading.isolation.worker", _json(config)],
-        stdin=subprocess.DEVNULL,
-        stdout=output_w,
-        stderr=output_w,
-        pass_fds=(request_r, response_w),
-        cwd=workdir,
-        env=env,
-        start_new_session=True,  # its own session and process group, killed as a group
-    )
-
-
-def _kill_tree(process: subprocess.Popen, uid: int | None) -> None:
-    try:
-        os.killpg(process.pid, signal.SIGKILL)
-    except (ProcessLookupError, PermissionError):
-        pass
-    if uid is not None:
-        # Children that left the process group (setsid) still run as the worker's uid.
-        _kill_uid(uid)
-    try:
-        process.wait(timeout=10)
-    except subprocess.TimeoutExpired:  # pragma: no cover - SIGKILL does not fail
-        pass
-
-
-def _reap(process: subprocess.Popen, uid: int | None, fds: tuple[int, ...], base: Path) -> None:
-    """Everything a worker leaves behind, undone (also at exit for a proxy never closed)."""
-    _kill_tree(process, uid)
-    for fd in fds:
-        try:
-            os.close(fd)
-        except OSError:
-            pass
-    shutil.rmtree(base, ignore_errors=True)
-
-
-def _matplotlib_font_caches() -> list[Path]:
-    """The grader's matplotlib font cache files (built once if missing)."""
-    try:
-        import matplotlib
-    except ImportError:
-        return []
-    found = sorted(Path(matplotlib.get_cachedir()).glob("fontlist-v*.json"))
-    if not found:
-        try:
-            import matplotlib.font_manager  # noqa: F401 - builds and saves the cache
-        except Exception:  # noqa: BLE001 - no cache only costs the worker time
-            return []
-        found = sorted(Path(matplotlib.get_cachedir()).glob("fontlist-v*.json"))
-    return found
-
-
-def _kill_uid(uid: int) -> None:
-    """SIGKILL every process of ``uid`` (root only): kill(-1) sent as that uid."""
-    for _ in range(2):  # a second pass catches a child forked during the first
-        pid = os.fork()
-        if pid == 0:  # pragma: no cover - runs in the child
-            try:
-                os.setgroups([])
-                os.setgid(uid)
-                os.setuid(uid)
-                os.kill(-1, signal.SIGKILL)
-            finally:
-                os._exit(0)
-        os.waitpid(pid, 0)
-
-
-def _json(value: Any) -> str:
-    import json
-
-    return json.dumps(value)
-
 
 # --- the proxy ---------------------------------------------------------------------------------
 
@@ -590,10 +79,20 @@ class SubmissionProxy:
         Cells that did not parse, or raised while being defined.
     sandbox : SandboxReport
         The isolation the worker applied.
+    answers : Answers or None
+        Answers the exercises below the one being graded with the reference
+        (:mod:`robolab.grading.running.answers`); None: every call runs the student's code only.
     """
 
-    def __init__(self, notebook: LoadedNotebook, lab: str | None, limits: Limits) -> None:
+    def __init__(
+        self,
+        notebook: LoadedNotebook,
+        lab: str | None,
+        limits: Limits,
+        answers: Answers | None = None,
+    ) -> None:
         self.lab = lab
+        self.answers = answers
         self.path = notebook.path
         # The parsed names until the worker reports what actually got defined.
         self.functions: list[str] = list(notebook.functions)
@@ -608,12 +107,70 @@ class SubmissionProxy:
         self._closed = False
         self._loaded = False
         self._timed_out: set[str] = set()
-        #: Wall seconds spent in calls so far (against ``limits.budget_seconds``).
+        #: Exercises whose reference answered a depcall in the current worker.
+        self._disclosed: set[str] = set()
+        #: Wall seconds the grader spent answering depcalls (not the submission's time).
+        self.answering_seconds = 0.0
+        #: Wall seconds (net of waiting for a CPU) of every load and call so far, against
+        #: ``limits.budget_seconds``.
         self.spent_seconds = 0.0
+        #: CPU seconds of every load and call so far (children included), against
+        #: ``limits.cpu_budget_seconds``.
+        self.spent_cpu_seconds = 0.0
+        #: The longest CPU time of one call so far.
+        self.longest_call_cpu_seconds = 0.0
+        #: ``{what was cut short and by which limit: how many times}``.
+        self._cut: dict[str, int] = {}
+
+    def limits_hit(self) -> list[str]:
+        """What a limit cut short, one line each, in the order it first happened."""
+        return [f"{text} ({n} times)" if n > 1 else text for text, n in self._cut.items()]
+
+    def usage(self) -> dict:
+        """The submission's time so far and the limits that cut it short (for the report)."""
+        return {
+            "cpu_seconds": round(self.spent_cpu_seconds, 3),
+            "awake_seconds": round(self.spent_seconds, 3),
+            "longest_call_cpu_seconds": round(self.longest_call_cpu_seconds, 3),
+            "cpu_budget_seconds": self._limits.cpu_budget_seconds,
+            "wall_budget_seconds": self._limits.budget_seconds,
+            "limits": self.limits_hit(),
+        }
+
+    def _note_cut(self, text: str) -> None:
+        self._cut[text] = self._cut.get(text, 0) + 1
+
+    def _left(self) -> tuple[float, float]:
+        """CPU and wall seconds left in the submission's budgets."""
+        return (
+            self._limits.cpu_budget_seconds - self.spent_cpu_seconds,
+            self._limits.budget_seconds - self.spent_seconds,
+        )
+
+    def _charge(self, worker: _Worker) -> float:
+        """Add the request that just ended to the submission's totals; return its CPU time."""
+        self.spent_cpu_seconds += worker.request_cpu
+        self.spent_seconds += worker.request_awake
+        return worker.request_cpu
+
+    def _budget_spent(self) -> str | None:
+        """Which total budget is used up, in words; None while both last."""
+        cpu_left, wall_left = self._left()
+        if cpu_left <= 0:
+            return f"total CPU time budget of {self._limits.cpu_budget_seconds:g} s"
+        if wall_left <= 0:
+            return f"total time budget of {self._limits.budget_seconds:g} s"
+        return None
 
     def __getattr__(self, name: str) -> Any:
         if name.startswith("__") or name.startswith("_"):
             raise AttributeError(name)
+        answers = self.__dict__.get("answers")
+        reference = answers.direct(name) if answers is not None else None
+        if reference is not None:
+            # A test's own call of an exercise below the one it grades: the reference's
+            # answer, so the student's version of it cannot move this exercise's points.
+            return reference
         if name not in self.__dict__.get("functions", ()):
             raise MissingFunction(f"the notebook does not define {name}()", kind="missing")
 
@@ -652,7 +209,7 @@ class SubmissionProxy:
         """A fresh worker with the notebook's definitions loaded."""
         worker = _Worker(self._limits, self._output)
         try:
-            message = worker.receive(time.monotonic() + STARTUP_SECONDS, None)
+            message = worker.receive(None)
             if message[0] != "ready":
                 raise WorkerStartError(f"the grading worker could not isolate itself: {message[1]}")
             worker.report = sandbox.SandboxReport.from_dict(message[1])
@@ -672,16 +229,26 @@ class SubmissionProxy:
         if self.sandbox is None:
             self.sandbox = worker.report
             _warn_if_weak(worker.report)
+        # Loading (and every reload after a crash) is charged to the submission's budgets.
+        cpu_left, wall_left = self._left()
+        wall = max(min(self._limits.wall_seconds, wall_left), 0.0)
+        cpu = max(min(self._limits.cpu_seconds, cpu_left), 0.0)
         try:
-            deadline = time.monotonic() + self._limits.wall_seconds
-            budget = load_budget(self._limits.wall_seconds, self._limits.cpu_seconds)
-            worker.send(("define", self._notebook.cells, *budget), deadline)
-            message = self._expect(
-                worker, worker.receive(deadline, self._limits.cpu_seconds), "defined"
-            )
+            budget = load_budget(wall, cpu)
+            worker.send(("define", self._notebook.cells, *budget), wall)
+            try:
+                reply = worker.receive(cpu, alarm_after=budget[0])
+            finally:
+                self._charge(worker)
+            message = self._expect(worker, reply, "defined")
         except (StudentCodeError, codec.CodecError, BrokenPipeError) as exc:
             if not isinstance(exc, StudentCodeError):
                 exc = StudentCodeError(f"the worker broke the protocol: {exc}", kind="protocol")
+            if isinstance(exc, WorkerTimeout):
+                spent = self._budget_spent()
+                if spent is not None:
+                    exc = WorkerTimeout(f"the submission used up its {spent}", kind="timeout")
+                self._note_cut(f"loading the notebook: {exc.message}")
             worker.close()
             self._broken = type(exc)(
                 f"loading the notebook's definitions failed: {exc.message}",
@@ -699,6 +266,25 @@ class SubmissionProxy:
             for problem in message[2]:
                 index, kind, text = problem
                 self.problems.append(self._notebook.problem(int(index), str(kind), str(text)))
+                if kind == "timeout":
+                    self._note_cut(f"loading the notebook: {self.problems[-1]}")
+        limits = self._limits
+        if any(p[1] == "timeout" for p in message[2]) and (
+            wall < limits.wall_seconds or cpu < limits.cpu_seconds
+        ):
+            # What was left of a budget did not load the notebook (again): it is as good as
+            # spent, rather than paid again, a little less each time, by every later call.
+            worker.close()
+            if wall < limits.wall_seconds:
+                self.spent_seconds = max(self.spent_seconds, limits.budget_seconds)
+            if cpu < limits.cpu_seconds:
+                self.spent_cpu_seconds = max(self.spent_cpu_seconds, limits.cpu_budget_seconds)
+            spent = self._budget_spent()
+            self._note_cut(f"loading the notebook: the submission used up its {spent}")
+            raise WorkerTimeout(
+                f"loading the notebook was stopped: the submission used up its {spent}",
+                kind="timeout",
+            )
         return worker
 
     def _expect(self, worker: _Worker, message: Any, kind: str, call_id: int | None = None) -> Any:
@@ -733,11 +319,11 @@ class SubmissionProxy:
             pickle.dumps((args, kwargs), protocol=5)
         except Exception as exc:
             raise TypeError(f"arguments to {name}() cannot be sent to the worker: {exc}") from exc
-        if self.spent_seconds >= self._limits.budget_seconds:
+        spent = self._budget_spent()
+        if spent is not None:
+            self._note_cut(f"calls not run: the submission used up its {spent}")
             raise WorkerTimeout(
-                f"{name}() was not run: the submission used up its total time budget "
-                f"of {self._limits.budget_seconds:g} s",
-                kind="timeout",
+                f"{name}() was not run: the submission used up its {spent}", kind="timeout"
             )
         worker = self._worker
         if (
@@ -747,8 +333,22 @@ class SubmissionProxy:
         ):
             self._discard()  # restart before the lifetime CPU limit could cut a fair call short
             worker = None
+        if (
+            worker is not None
+            and self.answers is not None
+            and self.answers.exercise in self._disclosed
+        ):
+            # This worker was given the reference's answers of the exercise now graded (it
+            # was below one graded earlier): a fresh worker, so nothing it kept can answer.
+            self._discard()
+            worker = None
         if worker is None:
             worker = self._worker = self._start()
+            if (spent := self._budget_spent()) is not None:  # the load used up the rest
+                self._note_cut(f"calls not run: the submission used up its {spent}")
+                raise WorkerTimeout(
+                    f"{name}() was not run: the submission used up its {spent}", kind="timeout"
+                )
         self._call_id += 1
         call_id = self._call_id
         wall, cpu = self._limits.wall_seconds, self._limits.cpu_seconds
@@ -756,15 +356,21 @@ class SubmissionProxy:
             # It ran out of time before: it most likely will again, and each try
             # would cost a full wall limit. A small input still gets its answer.
             wall, cpu = min(wall, max(1.0, wall / 10)), min(cpu, max(1.0, cpu / 10))
-        left = self._limits.budget_seconds - self.spent_seconds
-        budget_bound = left < wall
-        wall = min(wall, left)
-        worker.wall_seconds = wall
-        started = time.monotonic()
-        deadline = started + wall
+        cpu_left, wall_left = self._left()
+        wall, cpu = min(wall, wall_left), min(cpu, cpu_left)
+        answering = self.answering_seconds
+        below = self.answers.stubbed(name) if self.answers is not None else ()
         try:
-            worker.send(("call", call_id, name, args, kwargs, cpu), deadline)
-            message = worker.receive(deadline, cpu)
+            try:
+                worker.send(("call", call_id, name, args, kwargs, cpu, below), wall)
+                message = worker.receive(cpu, on_depcall=self._depcalls(call_id, below))
+            finally:
+                # The grader's own time answering depcalls counts for the call's wall limit
+                # (a bound), not for the submission's total budget: it is not the student's.
+                answered = self.answering_seconds - answering
+                worker.request_awake = max(0.0, worker.request_awake - answered)
+                call_cpu = self._charge(worker)
+                self.longest_call_cpu_seconds = max(self.longest_call_cpu_seconds, call_cpu)
         except codec.CodecError as exc:
             self._discard()
             raise StudentCodeError(
@@ -774,12 +380,13 @@ class SubmissionProxy:
             self._discard()
             if isinstance(exc, WorkerTimeout):
                 self._timed_out.add(name)
-                if budget_bound and time.monotonic() >= deadline:
+                spent = self._budget_spent()
+                if spent is not None:
                     exc = WorkerTimeout(
-                        f"timed out: the submission used up its total time budget of "
-                        f"{self._limits.budget_seconds:g} s",
-                        kind="timeout",
+                        f"timed out: the submission used up its {spent}", kind="timeout"
                     )
+            if isinstance(exc, (WorkerTimeout, ScratchExceeded)):
+                self._note_cut(f"{name}(): {exc.message}")
             if isinstance(exc, BrokenPipeError):
                 raise WorkerCrashed(
                     f"the worker died before {name}() could run", kind="crash"
@@ -787,9 +394,37 @@ class SubmissionProxy:
             raise type(exc)(
                 f"{name}(): {exc.message}", kind=exc.kind, student_traceback=exc.student_traceback
             ) from None
-        finally:
-            self.spent_seconds += time.monotonic() - started
         return self._answer(worker, name, call_id, message, args, kwargs)
+
+    def _depcalls(self, call_id: int, below: tuple[str, ...]) -> Callable[[Any], tuple] | None:
+        """The handler of the running call's depcalls: the reference's answers (see answers.py)."""
+        if not below or self.answers is None:
+            return None
+        answers = self.answers
+
+        def answer(message: tuple) -> tuple:
+            started = time.monotonic()
+            try:
+                return checked(message)
+            finally:
+                self.answering_seconds += time.monotonic() - started
+
+        def checked(message: tuple) -> tuple:
+            if len(message) != 6 or message[1] != call_id or message[2] not in below:
+                raise StudentCodeError(
+                    f"the worker asked for an answer out of turn ({_short(message[:3])})",
+                    kind="protocol",
+                )
+            reply = answers.answer(*message[2:])
+            if reply[0] in ("answer", "raise"):
+                self._disclosed.add(message[2])
+            try:
+                pickle.dumps(reply, protocol=5)
+            except Exception as exc:  # noqa: BLE001 - a reference value that cannot cross
+                return ("own", f"the reference's answer cannot be sent: {exc}")
+            return reply
+
+        return answer
 
     def _answer(
         self,
@@ -817,6 +452,10 @@ class SubmissionProxy:
                 self._discard()
                 raise StudentCodeError("the worker sent a malformed error", kind="protocol")
             cls = student_error_class([b for b in info["bases"] if isinstance(b, str)])
+            if cls.__name__ == "StudentMemoryError":
+                self._note_cut(
+                    f"{name}(): ran out of memory (limit {self._limits.memory_bytes / 2**30:g} GiB)"
+                )
             raise cls(
                 str(info.get("message", "")),
                 kind=str(info.get("type", "Exception")),
@@ -837,6 +476,7 @@ class SubmissionProxy:
         )
 
     def _discard(self) -> None:
+        self._disclosed.clear()
         if self._worker is not None:
             self._worker.close()
             self._worker = None
@@ -874,7 +514,11 @@ def _warn_if_weak(report: sandbox.SandboxReport) -> None:
 
 
 def open_submission(
-    path: str | Path, lab: str | None = None, *, limits: Limits | None = None
+    path: str | Path,
+    lab: str | None = None,
+    *,
+    limits: Limits | None = None,
+    answers: Answers | None = None,
 ) -> SubmissionProxy:
     """Load a notebook into an isolated worker and return a proxy to its functions.
 
@@ -888,6 +532,9 @@ def open_submission(
         ``lab`` is then the notebook's metadata).
     limits : Limits, optional
         Resource limits of the worker (defaults: :class:`Limits`).
+    answers : Answers, optional
+        The reference's answers for the exercises below the one being graded
+        (:mod:`robolab.grading.running.answers`; the pytest plugin passes them).
 
     Returns
     -------
@@ -908,9 +555,10 @@ def open_submission(
         warnings.warn(
             f"{notebook.path} says it is lab {notebook.lab!r}, graded as {lab!r}", stacklevel=2
         )
-    proxy = SubmissionProxy(notebook, lab or notebook.lab, limits or Limits())
+    proxy = SubmissionProxy(notebook, lab or notebook.lab, limits or Limits(), answers)
     try:
         proxy._worker = proxy._start()
     except StudentCodeError:
         pass  # recorded in proxy.problems; every call raises it again
     return proxy
+

@@ -8,9 +8,10 @@ a proxy to the student's notebook running in an isolated worker process.
 A hidden test module may set ``GRADING_LIMITS = {"cpu_seconds": 2, ...}`` (the
 fields of :class:`robolab.grading.running.proxy.Limits`) to tighten or relax the
 worker's per-call limits for its lab: a lab of microsecond functions should not
-let a hanging submission cost a minute per test. ``REFERENCE_SECONDS`` (the
-reference solution's grading time) sets the submission's total time budget to a
-few times that (:func:`robolab.grading.running.proxy.reference_budget`).
+let a hanging submission cost a minute per test. ``REFERENCE_CPU_SECONDS`` (the CPU
+time the reference solution's worker uses while graded) sets the submission's total
+CPU budget to a few times that, and its wall backstop with it
+(:func:`robolab.grading.running.proxy.reference_limits`).
 
 Every hidden test carries the ``grades`` marker naming the exercise function it
 grades and its points (a positive number). A test under ``tests/labs/`` without
@@ -22,7 +23,11 @@ With ``--grading-report PATH`` the plugin writes what the grader needs as JSON::
      "tests": [{"nodeid", "name", "description", "exercise", "points",
                 "outcome": "passed" | "failed" | "error" | "skipped", "message"}],
      "problems": [{"cell_index", "kind", "message"}],   # from loading the notebook
+     "usage": {"cpu_seconds", "awake_seconds", "limits": [str], ...} | null,
      "collection_errors": [str]}
+
+``usage`` is the submission's time (:meth:`SubmissionProxy.usage`) and what a limit
+cut short, which the gradebook flags.
 
 Two more markers shape the credit and the feedback (``docs/grading.md``):
 
@@ -32,12 +37,19 @@ Two more markers shape the credit and the feedback (``docs/grading.md``):
   function works on valid input, so a function that always raises earns nothing;
   an end-to-end test requires the core formula's tests, so a wrong formula cannot
   keep the end-to-end points. A gated test that passed on its own is reported as
-  failed, with a message naming the tests it waits for.
+  failed, with a message naming the tests it waits for. The named tests must grade
+  the same exercise (refused at collection otherwise): a mistake costs once.
 - ``@pytest.mark.uses("p_max", ...)`` (or a module-level table ``USES =
   {"beam_range_finder_model": ["p_hit", ...]}`` applying to every test of an
   exercise): the test relies on other exercises, which the student's function
-  may call. When one of those fails its own tests, the failure message of this
-  test says so and points to that exercise's section of the feedback.
+  may call. ``USES`` also adds to the exercises below each one
+  (:func:`robolab.grading.running.answers.dependency_table`), which answer as the
+  reference while it is graded. When one of those fails its own tests, the
+  failure message of this test notes it and points to that exercise's section.
+
+While a test runs, the proxy knows the exercise it grades (its ``grades``
+marker): the exercises below that one answer as the reference
+(:mod:`robolab.grading.running.answers`), so each exercise's points measure its own logic.
 
 ``message`` is the failure's own message (pytest's ``reprcrash.message``, or the
 student's traceback when the student's code raised), never the hidden test's
@@ -46,6 +58,7 @@ source lines.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import importlib
 import json
@@ -56,6 +69,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
+from robolab.grading.running.credit import settle
 
 # nbformat -> jsonschema imports the optional rfc3987_syntax, which builds a parser
 # at import time: about 2 s of CPU in every grading process. Grading never checks
@@ -71,6 +86,7 @@ USES = "uses"
 MAX_MESSAGE_CHARS = 2000
 
 _problems_key = pytest.StashKey[list]()
+_proxies_key = pytest.StashKey[list]()
 _collector_key = pytest.StashKey["GradingCollector"]()
 
 
@@ -103,6 +119,7 @@ def pytest_configure(config: pytest.Config) -> None:
         "markers", f"{USES}(*exercises): other exercises this test relies on (for the feedback)"
     )
     config.stash[_problems_key] = []
+    config.stash[_proxies_key] = []
     path = config.getoption("--grading-report")
     if path:
         collector = GradingCollector(Path(path), config)
@@ -125,17 +142,95 @@ def lab(request: pytest.FixtureRequest):
     notebook = request.config.getoption("--notebook")
     if notebook is None:
         return importlib.import_module(f"solutions.{name}")
-    from robolab.grading.running.proxy import Limits, open_submission, reference_budget
+    from robolab.grading.running.proxy import Limits, open_submission, reference_limits
 
-    overrides = dict(getattr(request.module, "GRADING_LIMITS", None) or {})
-    reference = getattr(request.module, "REFERENCE_SECONDS", None)
-    if reference is not None and "total_wall_seconds" not in overrides:
-        # the submission's total call time: a few times the reference solution's
-        overrides["total_wall_seconds"] = reference_budget(Limits(**overrides), reference)
-    proxy = open_submission(notebook, lab=name, limits=Limits(**overrides) if overrides else None)
+    limits = Limits(**(getattr(request.module, "GRADING_LIMITS", None) or {}))
+    reference = getattr(request.module, "REFERENCE_CPU_SECONDS", None)
+    if reference is not None:
+        # the submission's total CPU time: a few times the reference solution's
+        limits = reference_limits(limits, reference)
+    from robolab.grading.running.answers import Answers
+
+    # While a test grades an exercise, the exercises below it answer as the reference.
+    answers = Answers.for_lab(name, getattr(request.module, "USES", None))
+    grading = request.config.stash.setdefault(_grading_key, _Grading())
+    grading.answers.append(answers)
+    answers.exercise = grading.exercise
+    proxy = open_submission(notebook, lab=name, limits=limits, answers=answers)
     request.addfinalizer(proxy.close)
+    request.config.stash[_proxies_key].append(proxy)
     request.config.stash[_problems_key].extend(_plain(p) for p in getattr(proxy, "problems", []))
     return proxy
+
+
+@dataclasses.dataclass
+class _Grading:
+    """The exercise the running test grades, the answers that must know it, and which
+    exercises have passed every one of their tests so far."""
+
+    exercise: str | None = None
+    answers: list = dataclasses.field(default_factory=list)
+    tests: dict = dataclasses.field(default_factory=dict)  # (module, exercise) -> tests
+    passed: dict = dataclasses.field(default_factory=dict)  # (module, exercise) -> passed
+
+    def clean(self, module: str, exercise: str) -> bool:
+        """Every test of ``exercise`` in ``module`` has run and passed."""
+        key = (module, exercise)
+        return self.passed.get(key, 0) >= self.tests.get(key, 0)
+
+
+_grading_key = pytest.StashKey[_Grading]()
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    # Before the fixtures: a module fixture calling the notebook already grades this exercise.
+    grading = item.config.stash.setdefault(_grading_key, _Grading())
+    try:
+        grade = grade_of(item)
+    except ValueError:  # refused at collection already
+        grade = None
+    grading.exercise = grade.exercise if grade is not None else None
+    module = item.nodeid.split("::")[0]
+    for answers in grading.answers:
+        answers.exercise = grading.exercise
+        # Answered by the reference only where needed: an exercise below this one that
+        # passes all its own tests (they run first) runs as the student wrote it, so a
+        # correct notebook is graded without a single call-back.
+        answers.suspects = frozenset(
+            below
+            for below in answers.below.get(grading.exercise, ())
+            if not grading.clean(module, below)
+        )
+
+
+@contextlib.contextmanager
+def _refusing(error: type[BaseException], bad_input: str) -> Iterator[None]:
+    if not isinstance(bad_input, str) or not bad_input.strip():
+        raise TypeError("refuses(error, bad_input): bad_input names the input, e.g. 'sigma = -1'")
+    try:
+        yield
+    except error:
+        return
+    pytest.fail(
+        f"expected {error.__name__} for {bad_input}, but the function returned normally: the "
+        "docstring asks to refuse such input with a clear error, not to compute on it",
+        pytrace=False,
+    )
+
+
+@pytest.fixture
+def refuses():
+    """A refusal check that names its bad input in the feedback::
+
+        with refuses(ValueError, "sigma_hit = -0.1 (a standard deviation must be > 0)"):
+            lab.p_hit(1.0, 1.0, 5.0, -0.1)
+
+    Passes when the block raises ``error`` (a subclass included); fails, naming
+    ``bad_input``, when it returns normally. Any other exception propagates, as
+    with ``pytest.raises`` (a stub's NotImplementedError stays "not implemented").
+    """
+    return _refusing
 
 
 # --- the grades marker ------------------------------------------------------------------------
@@ -204,16 +299,26 @@ def uses_of(item: pytest.Item) -> list[str]:
     return [n for n in names if grade is None or n != grade.exercise]
 
 
-def _check_requires(item: pytest.Item, names_by_module: dict[str, set[str]]) -> str | None:
+def _check_requires(
+    item: pytest.Item, exercises: dict[tuple[str, str], set[str]], exercise: str | None
+) -> str | None:
     wanted = required_of(item)
     module = item.nodeid.split("::")[0]
     if any(not isinstance(n, str) for n in wanted):
         return f"{REQUIRES} takes test function names, got {wanted!r}"
-    unknown = [n for n in wanted if n not in names_by_module.get(module, set())]
+    unknown = [n for n in wanted if (module, n) not in exercises]
     if unknown:
         return f"{REQUIRES} names tests that {module} does not have: {unknown}"
     if _base_name(item) in wanted:
         return f"{REQUIRES} names the test itself"
+    # A mistake costs once: a test pays for its own exercise, whatever the others do.
+    foreign = [n for n in wanted if exercises[(module, n)] - {exercise}]
+    if foreign:
+        return (
+            f"{REQUIRES} names tests of other exercises than {exercise}: {foreign} (a test's "
+            "points may wait only for its own exercise's tests; the exercises it builds on "
+            "answer as the reference while it is graded)"
+        )
     return None
 
 
@@ -225,6 +330,12 @@ _failed_key = pytest.StashKey[set]()
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo) -> Iterator[None]:
     report = yield
+    if report.when == "call" and report.passed:
+        grading = item.config.stash.setdefault(_grading_key, _Grading())
+        grade = grade_of(item)
+        if grade is not None:
+            key = (item.nodeid.split("::")[0], grade.exercise)
+            grading.passed[key] = grading.passed.get(key, 0) + 1
     # A stub's NotImplementedError is cheap to meet again, and its feedback ("not implemented
     # yet") is clearer than "not run": only other failures make the gated tests skip.
     stub = call.excinfo is not None and call.excinfo.errisinstance(NotImplementedError)
@@ -242,7 +353,8 @@ def pytest_pyfunc_call(pyfuncitem: pytest.Function) -> bool | None:
     waiting = [n for n in required_of(pyfuncitem) if (module, n) in failed]
     if waiting:
         titles = {
-            _base_name(it): describe(it).split(" [")[0]
+            _base_name(it): title_of(getattr(getattr(it, "obj", None), "__doc__", None))
+            or _base_name(it)
             for it in pyfuncitem.session.items
             if it.nodeid.split("::")[0] == module and _base_name(it) in waiting
         }
@@ -264,16 +376,27 @@ def pytest_collection_modifyitems(
     session: pytest.Session, config: pytest.Config, items: list[pytest.Item]
 ) -> None:
     problems = []
-    names_by_module: dict[str, set[str]] = {}
+    exercises: dict[tuple[str, str], set[str]] = {}  # (module, test) -> exercises it grades
+    grading = config.stash.setdefault(_grading_key, _Grading())
     for item in items:
-        names_by_module.setdefault(item.nodeid.split("::")[0], set()).add(_base_name(item))
+        try:
+            grade = grade_of(item)
+        except ValueError:
+            grade = None
+        if grade is not None:
+            key = (item.nodeid.split("::")[0], grade.exercise)
+            grading.tests[key] = grading.tests.get(key, 0) + 1
+        exercises.setdefault((item.nodeid.split("::")[0], _base_name(item)), set()).add(
+            grade.exercise if grade is not None else None
+        )
     for item in items:
         try:
             grade = grade_of(item)
         except ValueError as exc:
             problems.append(f"{item.nodeid}: {exc}")
             continue
-        if (bad := _check_requires(item, names_by_module)) is not None:
+        exercise = grade.exercise if grade is not None else None
+        if (bad := _check_requires(item, exercises, exercise)) is not None:
             problems.append(f"{item.nodeid}: {bad}")
         if grade is None and _is_hidden_test(item):
             problems.append(
@@ -287,14 +410,16 @@ def pytest_collection_modifyitems(
 # --- the results collector --------------------------------------------------------------------
 
 
+def title_of(doc: str | None) -> str:
+    """A docstring's first paragraph on one line: the check's title (a whole sentence)."""
+    paragraph = (doc or "").strip().split("\n\n")[0]
+    return " ".join(paragraph.split())
+
+
 def describe(item: pytest.Item) -> str:
-    """A test's name in words: its docstring's first line, else its name without ``test_``."""
-    doc = (getattr(getattr(item, "obj", None), "__doc__", None) or "").strip()
-    base = (
-        doc.splitlines()[0].strip()
-        if doc
-        else item.name.split("[")[0].removeprefix("test_").replace("_", " ")
-    )
+    """A test's name in words: its docstring's title, else its name without ``test_``."""
+    doc = getattr(getattr(item, "obj", None), "__doc__", None)
+    base = title_of(doc) or item.name.split("[")[0].removeprefix("test_").replace("_", " ")
     param = item.name[len(item.name.split("[")[0]) :]
     return base + (f" {param}" if param else "")
 
@@ -323,7 +448,8 @@ def failure_message(exc: BaseException | None, crash_message: str | None) -> str
         head = _REWRITE_TAIL.sub("", text)
         if head.strip() and head.strip() not in ("AssertionError", "AssertionError:"):
             text = head
-    text = text.strip()
+    # pytest.fail's own words (a refusal naming its input, "Not run: ...") without pytest's label
+    text = text.strip().removeprefix("Failed: ")
     if (missed := _DID_NOT_RAISE.search(text)) is not None:
         kind = missed.group(1) or missed.group(2) or "an error"
         text = (
@@ -336,6 +462,17 @@ def failure_message(exc: BaseException | None, crash_message: str | None) -> str
         cut = len(text) - MAX_MESSAGE_CHARS
         text = f"{text[:half]}\n... ({cut} characters cut) ...\n{text[-half:]}"
     return text
+
+
+def _usage(proxies: list) -> dict | None:
+    """The submission's time and the limits that cut it short, over its proxies (one a lab)."""
+    usages = [p.usage() for p in proxies if callable(getattr(p, "usage", None))]
+    if not usages:
+        return None
+    total = {key: sum(u[key] for u in usages) for key in ("cpu_seconds", "awake_seconds")}
+    total["longest_call_cpu_seconds"] = max(u["longest_call_cpu_seconds"] for u in usages)
+    total["limits"] = [line for u in usages for line in u["limits"]]
+    return total
 
 
 def _plain(obj: Any) -> dict:
@@ -423,6 +560,7 @@ class GradingCollector:
             "exitstatus": exitstatus,
             "tests": settle(list(self.records.values())),
             "problems": self.config.stash[_problems_key],
+            "usage": _usage(self.config.stash[_proxies_key]),
             "collection_errors": self.collection_errors,
         }
         self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -431,69 +569,3 @@ class GradingCollector:
         # after every test of every submission).
         tmp.write_text(json.dumps(data))
         tmp.replace(self.path)
-
-
-# --- credit that follows the exercise's parts, and hints across exercises ---------------------
-
-
-def _label(record: dict) -> str:
-    return f"\"{record['description']}\""
-
-
-def settle(records: list[dict]) -> list[dict]:
-    """The records as the student is graded: ``requires`` gates applied, ``uses`` hints added.
-
-    Pure: returns new dicts, the collector's own records stay as the tests ran
-    (so a rewrite after a later test starts again from the raw outcomes).
-
-    - A passed test whose required tests did not all pass becomes "failed", with
-      a message naming them (repeated until nothing changes: gates can chain).
-    - A failed test that uses an exercise which fails some of its own tests gets
-      a closing sentence pointing to that exercise's section.
-    """
-    out = [dict(r) for r in records]
-    by_test: dict[tuple[str, str], list[dict]] = {}
-    for r in out:
-        by_test.setdefault((r.get("module", ""), r.get("test", "")), []).append(r)
-    changed = True
-    while changed:
-        changed = False
-        for r in out:
-            if r["outcome"] != "passed" or not r.get("requires"):
-                continue
-            waiting = [
-                other
-                for name in r["requires"]
-                for other in by_test.get((r.get("module", ""), name), [])
-                if other["outcome"] != "passed"
-            ]
-            if waiting:
-                r["outcome"] = "failed"
-                r["gated"] = True
-                r["message"] = (
-                    f"This check passed on its own, but it counts only when `{r['exercise']}` "
-                    f"also passes {', '.join(_label(w) for w in waiting[:3])}"
-                    f"{' and more' if len(waiting) > 3 else ''}: refusing bad input or "
-                    "finishing the whole run earns points only for a function that computes "
-                    "the right values."
-                )
-                changed = True
-    failing: dict[str, int] = {}
-    for r in out:
-        if r["outcome"] in ("failed", "error") and not r.get("gated"):
-            failing[r["exercise"]] = failing.get(r["exercise"], 0) + 1
-    for r in out:
-        if r["outcome"] not in ("failed", "error"):
-            continue
-        culprits = [u for u in r.get("uses", []) if u in failing and u != r["exercise"]]
-        if culprits:
-            names = ", ".join(f"`{u}`" for u in culprits)
-            r["message"] = (r.get("message") or "").rstrip() + (
-                f"\n\nThis may be because {names} "
-                f"{'is' if len(culprits) == 1 else 'are'} wrong: "
-                f"{'it fails' if len(culprits) == 1 else 'they fail'} "
-                f"{'its' if len(culprits) == 1 else 'their'} own checks, which "
-                f"{r['exercise']} relies on; see the section on {names} and fix "
-                f"{'it' if len(culprits) == 1 else 'them'} first."
-            )
-    return out

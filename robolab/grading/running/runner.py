@@ -17,7 +17,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -39,7 +39,9 @@ __all__ = [
     "stop_running",
 ]
 
-#: Seconds one submission may take in total before its pytest run is stopped.
+#: Seconds one submission may take in total before its pytest run is stopped, not counting
+#: the time its pytest run and workers waited for a CPU (a backstop: a submission's own
+#: time is bounded by its budgets, see docs/grading.md).
 DEFAULT_TIMEOUT = 600.0
 #: Seconds between asking pytest to stop (SIGINT: fixtures close the worker) and killing it.
 _GRACE = 5.0
@@ -88,6 +90,12 @@ class SubmissionResult:
     #: Things the instructor must look at (a lab that differs from the batch's, ...);
     #: shown in the summary and the gradebook, not a grading error.
     flags: list[str] = field(default_factory=list)
+    #: What a time or memory limit cut short (flagged in the gradebook and the summary).
+    limits: list[str] = field(default_factory=list)
+    #: CPU seconds the submission's own processes used (loads and calls, children included).
+    cpu_seconds: float = 0.0
+    #: Wall seconds of its loads and calls, less the time its worker waited for a CPU.
+    awake_seconds: float = 0.0
 
     def to_dict(self) -> dict:
         """A JSON-ready copy (the path as text, surrogate escapes kept) for the batch state."""
@@ -154,16 +162,24 @@ def _stop(proc: subprocess.Popen) -> None:
 
 
 def stop_running() -> int:
-    """Stop every pytest run this process started that is still running; return how many."""
+    """Stop every pytest run this process started that is still running; return how many.
+
+    Each run's own thread (:func:`_run`) sees the request within :data:`_TICK` and stops
+    its run; this waits until they all have.
+    """
     with _LIVE_LOCK:
         _STOPPING.set()
         running = list(_LIVE)
-    threads = [threading.Thread(target=_stop, args=(p,)) for p in running]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    for proc in running:
+        try:
+            proc.wait()
+        except Exception:  # noqa: BLE001 - gone already
+            pass
     return len(running)
+
+
+#: Seconds between a pytest run's thread looking for a request to stop.
+_TICK = 0.2
 
 
 def _pytest_command(
@@ -221,26 +237,50 @@ def start_zygotes(root: Path | None = None) -> None:
 def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | None, float]:
     """Run ``cmd`` in its own session; on timeout SIGINT then SIGKILL its process group.
 
-    Returns the exit code (None after a timeout) and the seconds it took.
+    The timeout counts on a clock that leaves out the time the run and its workers (whose
+    pids the proxy appends to a file next to ``log``) waited for a CPU, so a busy machine
+    never reaches it. Returns the exit code (None after a timeout) and the wall seconds.
     """
+    from robolab.grading.isolation.processes import WORKER_PIDS_VARIABLE, AwakeClock
+
     workers = warm.shared()  # one warm worker zygote serves every pytest run of this process
-    env = _pytest_env(workers)
+    pids = log.with_name("workers.txt")
+    env = dict(_pytest_env(workers), **{WORKER_PIDS_VARIABLE: str(pids)})
     start = time.monotonic()
     with log.open("wb") as out, _LIVE_LOCK:
         if _STOPPING.is_set():
             return None, 0.0
         proc = _launch(cmd, cwd, env, out.fileno(), workers)
         _LIVE.add(proc)
+    code: int | None = None
+    clock = AwakeClock(proc.pid)
     try:
-        code: int | None = proc.wait(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        code = None
-        # SIGINT first so pytest's finalizers close the student's worker, then make sure.
-        _stop(proc)
+        while code is None and not _STOPPING.is_set():
+            for pid in _pids_in(pids):
+                clock.watch(pid)
+            left = timeout - clock.elapsed()
+            if left <= 0:
+                break
+            try:
+                code = proc.wait(timeout=min(_TICK, left))
+            except subprocess.TimeoutExpired:
+                pass
+        if code is None:
+            # Timed out or asked to stop: SIGINT first so pytest's finalizers close the
+            # student's worker, then make sure.
+            _stop(proc)
     finally:
         with _LIVE_LOCK:
             _LIVE.discard(proc)
     return code, time.monotonic() - start
+
+
+def _pids_in(path: Path) -> list[int]:
+    """The worker pids a pytest run wrote down so far."""
+    try:
+        return [int(line) for line in path.read_text(encoding="ascii").split()]
+    except (OSError, ValueError):
+        return []
 
 
 def _launch(cmd: list[str], cwd: Path, env: dict, out: int, workers: warm.Zygote | None) -> Any:
@@ -292,12 +332,13 @@ def grade_submission(
     """
     path = Path(path)
     result = SubmissionResult(path=path, name=name or path.stem, lab=lab)
+    try:  # read here, safely, so that a file that is no notebook fails alone, graded as nothing
+        declared = lab_of_notebook(path)
+    except LabError as exc:
+        result.errors.append(str(exc))
+        return result
     if result.lab is None:
-        try:
-            result.lab = lab_of_notebook(path)
-        except LabError as exc:
-            result.errors.append(str(exc))
-            return result
+        result.lab = declared
         if result.lab is None:
             result.errors.append(
                 "the notebook does not say which lab it is (no robolab.lab in its metadata) "
@@ -314,13 +355,15 @@ def grade_submission(
     with tempfile.TemporaryDirectory(prefix="robolab-grade-") as tmp:
         report_path, log = Path(tmp) / "report.json", Path(tmp) / "pytest.log"
         cmd = _pytest_command(
-            python or sys.executable, spec.root, spec.hidden_tests, path.resolve(), report_path
+            python or sys.executable, spec.root, spec.hidden_tests, path.absolute(), report_path
         )
         code, result.seconds = _run(cmd, spec.root, log, timeout)
         report = json.loads(report_path.read_text()) if report_path.is_file() else None
         log_tail = _tail(log)
 
     if report is None:
+        if code is None:
+            result.limits.append(f"grading stopped at the batch's timeout of {timeout:g} s")
         result.fatal = code is not None
         result.errors.append(
             f"grading timed out after {timeout:g} s"
@@ -329,6 +372,10 @@ def grade_submission(
         )
         return result
     result.problems = list(report.get("problems", []))
+    usage = report.get("usage") or {}
+    result.cpu_seconds = float(usage.get("cpu_seconds", 0.0))
+    result.awake_seconds = float(usage.get("awake_seconds", 0.0))
+    result.limits = [str(line) for line in usage.get("limits", [])]
     if report.get("collection_errors") or (code is not None and code not in _RAN):
         result.fatal = True
         result.errors.append(
@@ -341,6 +388,7 @@ def grade_submission(
         result.errors.append(
             f"grading timed out after {timeout:g} s; tests that had not finished earn nothing"
         )
+        result.limits.append(f"grading stopped at the batch's timeout of {timeout:g} s")
     result.tests = [
         TestOutcome(
             nodeid=t["nodeid"],
@@ -402,8 +450,7 @@ def grade_all(
     # a thread of its own: it says what the gradebook's isolation column holds, and gates
     # nothing (each worker isolates itself as before). Results wait for it before anyone
     # sees them, and its line is printed before the first of them.
-    probe_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="robolab-probe")
-    probe = probe_pool.submit(_protection.batch_protection)
+    probe = _in_daemon_thread(_protection.batch_protection, "robolab-probe")
     protection = None
     labs = list(labs) if labs is not None else [lab] * len(paths)
     names = list(names) if names is not None else [p.stem for p in paths]
@@ -449,8 +496,23 @@ def grade_all(
             future.cancel()
         stop_running()
         pool.shutdown(wait=True, cancel_futures=True)
-        probe_pool.shutdown(wait=False)  # its worker is killed with the zygote at exit
+        # The probe is not waited for (a daemon thread): its worker dies with the zygote.
         raise BatchInterrupted(done, len(paths)) from None
     pool.shutdown(wait=True)
-    probe_pool.shutdown(wait=True)
     return [r for r in results if r is not None]
+
+
+def _in_daemon_thread(function: Callable[[], Any], name: str) -> Future:
+    """``function()`` in a daemon thread: an interrupted batch exits without waiting for it."""
+    future: Future = Future()
+
+    def run() -> None:
+        if not future.set_running_or_notify_cancel():
+            return
+        try:
+            future.set_result(function())
+        except BaseException as exc:  # noqa: BLE001 - handed to whoever waits for it
+            future.set_exception(exc)
+
+    threading.Thread(target=run, name=name, daemon=True).start()
+    return future

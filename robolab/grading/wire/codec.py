@@ -8,7 +8,8 @@ names, so the grader never uses :func:`pickle.loads` on worker output: it uses
 * knows an allow-list of harmless constructors (numpy arrays from a buffer,
   numpy scalars, dtypes of a fixed set of plain kinds, ``complex``, ``slice``,
   ``range``, sets, ``bytearray``, ``Fraction`` and registered robolab
-  dataclasses), each wrapped so its arguments are checked *before* it runs;
+  dataclasses, among them :class:`SparseMatrix`, the form in which a scipy.sparse
+  result crosses), each wrapped so its arguments are checked *before* it runs;
 * executes only the opcodes a protocol-5 pickle of plain data uses, and never
   calls ``__setstate__``: a numpy dtype's state must be exactly the state of
   the plain dtype its constructor built (structured, subarray, object, void,
@@ -16,15 +17,19 @@ names, so the grader never uses :func:`pickle.loads` on worker output: it uses
   item can never be smuggled in);
 * decodes under a :class:`DecodeLimits` budget checked before anything is
   allocated or hashed: message bytes, opcodes, buffer lengths, integer and
-  Fraction bit sizes, ``range`` lengths, string lengths, and the work of
-  hashing dict keys and set items (counted through shared references, with
-  few keys of one hash per container).
+  Fraction bit sizes, ``range`` lengths, string lengths, and a work budget
+  proportional to the message's size, charged before any operation whose cost
+  is not bounded by the bytes that spell it (the stream can refer to one object
+  again and again through the memo): hashing dict keys and set items, the gcd
+  normalising a Fraction. Bytearrays copied from one buffer may not hold more
+  bytes than the message. Few keys may share a hash.
 
 After unpickling, the value is walked once more: allowed types only, nesting
 depth, no value containing itself, and its *expanded* size -- every element
 counted as often as it is referenced, so a list nested 8 deep of ``[a] * 10``
 counts 1e8 leaves although its message has 200 bytes -- within the budget.
-Every cost is thus linear in the message and bounded by the grader's own
+Every cost is thus linear in the message (at most a small multiple of
+decoding a plain message of the same size) and bounded by the grader's own
 limits, so no memory or time limit is needed around the decode itself. The
 opcode engine is :mod:`robolab.grading.wire.unpickler`; this module holds what is
 allowed and the final walk.
@@ -38,6 +43,7 @@ import io
 import math
 import pickle
 import re
+import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -57,6 +63,7 @@ from robolab.grading.wire.unpickler import (
 __all__ = [
     "LIMITS",
     "MAX_DEPTH",
+    "SparseMatrix",
     "CodecError",
     "DecodeLimits",
     "check_plain",
@@ -132,16 +139,31 @@ def _scalar(dtype: Any, *args: Any) -> np.generic:
 _FRACTION_TEXT = re.compile(r"-?[0-9]{1,4300}(/[0-9]{1,4300})?")
 
 
+def _words(bits: int) -> int:
+    return 1 + bits // 64
+
+
 def _fraction(numerator: Any, denominator: Any = 1) -> fractions.Fraction:
     # Python 3.12+ pickles Fraction(numerator, denominator), 3.10-3.11 Fraction("n/d").
     # Accept exactly those two forms, so the constructor's float, Decimal and
     # scientific-notation paths are never reached; bound the sizes before the gcd.
+    # The stream can name one big int or text again and again through the memo, so the
+    # gcd (quadratic in the words of the two parts) and the parsing of decimal text
+    # (quadratic too) are charged to the message's work budget before they run.
+    unpickler = active()
     if type(numerator) is str and denominator == 1 and _FRACTION_TEXT.fullmatch(numerator):
+        top, _, bottom = numerator.partition("/")
+        n, d = _words(len(top) * 10 // 3), _words(len(bottom) * 10 // 3)
+        unpickler.charge(n * n + d * d + n * d, "Fractions (to parse and normalise)")
         return fractions.Fraction(numerator)
     if type(numerator) is not int or type(denominator) is not int:
         raise CodecError("a Fraction must be built from two ints or their 'n/d' text")
-    check_int(numerator, active().limits)
-    check_int(denominator, active().limits)
+    check_int(numerator, unpickler.limits)
+    check_int(denominator, unpickler.limits)
+    unpickler.charge(
+        _words(numerator.bit_length()) * _words(denominator.bit_length()),
+        "Fractions (to normalise)",
+    )
     return fractions.Fraction(numerator, denominator)
 
 
@@ -175,6 +197,11 @@ def _range(*args: Any) -> range:
 def _bytearray(data: Any = b"") -> bytearray:
     if type(data) is not bytes:
         raise CodecError("a bytearray must be built from bytes")
+    # The memo can name one buffer many times: every copy must be paid for by message bytes.
+    unpickler = active()
+    unpickler.copied += len(data)
+    if unpickler.copied > unpickler.size:
+        raise CodecError("the result's bytearrays hold more bytes than its message")
     return bytearray(data)
 
 
@@ -242,7 +269,7 @@ def registered_dataclasses() -> list[type]:
 
 
 #: Modules whose dataclasses are accepted by default (registered on first use).
-_DEFAULT_MODULES = ("robolab.maps", "robolab.bag")
+_DEFAULT_MODULES = ("robolab.maps", "robolab.bag", "robolab.datasets.g2o")
 _defaults_registered: set[str] = set()
 
 
@@ -274,6 +301,85 @@ def _registered(kind: type) -> bool:
     return _DATACLASSES.get((kind.__module__, kind.__qualname__)) is kind
 
 
+@dataclasses.dataclass(frozen=True, eq=False)
+class SparseMatrix:
+    """A scipy.sparse matrix as it crosses the process boundary: its COO triplets.
+
+    The worker sends every scipy.sparse result in this form (:func:`dumps`), because
+    scipy's own pickles run constructors the decoder does not allow. The grader reads
+    it back with :meth:`toarray` or :meth:`tosparse`, as it would the original; both
+    check the triplets first (they come from an untrusted process).
+    """
+
+    shape: tuple
+    row: np.ndarray
+    col: np.ndarray
+    data: np.ndarray
+    format: str
+
+    @classmethod
+    def of(cls, matrix: Any) -> SparseMatrix:
+        """The triplets of a scipy.sparse matrix or array (duplicates kept, as stored)."""
+        coo = matrix.tocoo()
+        return cls(
+            tuple(int(n) for n in coo.shape),
+            np.asarray(coo.row, dtype=np.int64),
+            np.asarray(coo.col, dtype=np.int64),
+            np.asarray(coo.data),
+            str(matrix.format),
+        )
+
+    @property
+    def nnz(self) -> int:
+        return int(np.asarray(self.data).size)
+
+    def _checked(
+        self, max_cells: float
+    ) -> tuple[tuple[int, int], np.ndarray, np.ndarray, np.ndarray]:
+        shape = self.shape
+        if not (
+            isinstance(shape, tuple)
+            and len(shape) == 2
+            and all(type(n) is int and 0 <= n for n in shape)
+        ):
+            raise CodecError(
+                f"a sparse matrix's shape must be two non-negative ints, got {shape!r}"
+            )
+        if math.prod(shape) > max_cells:
+            raise CodecError(f"a sparse matrix of shape {shape} is too large to read here")
+        row, col, data = (np.asarray(a).reshape(-1) for a in (self.row, self.col, self.data))
+        if (
+            not (row.size == col.size == data.size)
+            or row.dtype.kind not in "iu"
+            or col.dtype.kind not in "iu"
+        ):
+            raise CodecError("a sparse matrix needs integer rows and columns, one per value")
+        if row.size and (
+            row.min() < 0 or row.max() >= shape[0] or col.min() < 0 or col.max() >= shape[1]
+        ):
+            raise CodecError(f"a sparse matrix's indices lie outside its shape {shape}")
+        return shape, row, col, data
+
+    def toarray(self) -> np.ndarray:
+        """The dense matrix (duplicate entries summed, as scipy does)."""
+        shape, row, col, data = self._checked(LIMITS.max_elements)
+        dense = np.zeros(shape, dtype=np.result_type(data.dtype, np.float64))
+        np.add.at(dense, (row, col), data)
+        return dense
+
+    def tosparse(self):
+        """A ``scipy.sparse.csr_matrix`` of the same entries."""
+        import scipy.sparse
+
+        shape, row, col, data = self._checked(float(LIMITS.max_elements) ** 2)
+        if max(shape) > LIMITS.max_elements:
+            raise CodecError(f"a sparse matrix of shape {shape} is too large to read here")
+        return scipy.sparse.coo_matrix((data, (row, col)), shape=shape).tocsr()
+
+
+register_dataclass(SparseMatrix)
+
+
 # --- the unpickler -------------------------------------------------------------------------
 
 
@@ -286,9 +392,34 @@ class _Pickler(pickle.Pickler):
         return NotImplemented
 
 
+def _without_sparse(value: Any, sparse: Any, depth: int = 0) -> Any:
+    """``value`` with each scipy.sparse matrix in it (tuples, lists, dicts) as a SparseMatrix.
+
+    Done before pickling, not in ``reducer_override``: pickle refuses a NEWOBJ reduction
+    of one object standing for another. Deeper than MAX_DEPTH nothing is converted (the
+    decoder refuses such values anyway).
+    """
+    if sparse.issparse(value):
+        return SparseMatrix.of(value)
+    if depth >= MAX_DEPTH:
+        return value
+    kind = type(value)
+    if kind in (tuple, list):
+        items = [_without_sparse(v, sparse, depth + 1) for v in value]
+        return kind(items) if any(a is not b for a, b in zip(items, value, strict=True)) else value
+    if kind is dict:
+        items = {k: _without_sparse(v, sparse, depth + 1) for k, v in value.items()}
+        return items if any(items[k] is not value[k] for k in value) else value
+    return value
+
+
 def dumps(value: Any) -> bytes:
     """Pickle ``value`` in the wire format (used by the worker for results)."""
     buffer = io.BytesIO()
+    # scipy is looked up, not imported: a result cannot be sparse unless it is loaded
+    sparse = sys.modules.get("scipy.sparse")
+    if sparse is not None:
+        value = _without_sparse(value, sparse)
     _Pickler(buffer, protocol=PROTOCOL).dump(value)
     return buffer.getvalue()
 

@@ -43,8 +43,13 @@ class DecodeLimits:
         Largest integer (and Fraction numerator or denominator), in bits.
     max_text : int
         Longest string, in characters.
-    max_hash_work : int
-        Total expanded size of all dict keys and set items hashed while decoding.
+    work_per_byte, base_work : int
+        Work the decoder may do beyond reading the message, in units of about one
+        machine-word operation: ``base_work + work_per_byte * len(message)`` for the
+        whole message. Hashing dict keys and set items (their expanded size) and
+        normalising Fractions (the gcd is quadratic in their size) are charged,
+        wherever the stream refers to an object again through the memo, so a small
+        message can never demand much work.
     max_equal_hashes : int
         Most keys of one dict (or items of one set) sharing one hash value.
     max_depth : int
@@ -56,7 +61,8 @@ class DecodeLimits:
     max_elements: int = 2**23
     max_int_bits: int = 2**16
     max_text: int = 2**20
-    max_hash_work: int = 2**22
+    work_per_byte: int = 64
+    base_work: int = 2**16
     max_equal_hashes: int = 8
     max_depth: int = MAX_DEPTH
 
@@ -116,7 +122,9 @@ class Unpickler(_Base):
         self.constructors = frozenset(map(id, allowed.values()))
         self.classes = classes
         self.size = len(data)
-        self.hash_work = 0
+        self.work = 0
+        self.copied = 0  # bytes copied into bytearrays (at most the message's size)
+        self.work_budget = limits.base_work + limits.work_per_byte * len(data)
         self.key_weights: dict[int, tuple[Any, int]] = {}
         self.hash_counts: dict[int, tuple[Any, dict[int, int]]] = {}
         self.unbuilt: dict[int, Any] = {}
@@ -212,6 +220,17 @@ class Unpickler(_Base):
             raise CodecError(f"{type(inst).__qualname__} must be rebuilt from its fields only")
         inst.__dict__.update(state)
 
+    # -- work under a budget --
+
+    def charge(self, units: int, what: str) -> None:
+        """Count ``units`` of work before doing it; CodecError past the message's budget."""
+        self.work += units
+        if self.work > self.work_budget:
+            raise CodecError(
+                f"the result's {what} cost more work to decode than a result of "
+                f"{self.size} bytes may"
+            )
+
     # -- hashing under a budget --
 
     def hashed(self, container: set | dict, keys: Any, values: Any = None) -> Any:
@@ -220,9 +239,7 @@ class Unpickler(_Base):
             raise CodecError("set items must be a list or tuple")
         counts = self.hash_counts.setdefault(id(container), (container, {}))[1]
         for key in keys:
-            self.hash_work += self._key_weight(key, 0)
-            if self.hash_work > self.limits.max_hash_work:
-                raise CodecError("the result's dict keys or set items are too costly to hash")
+            self.charge(self._key_weight(key, 0), "dict keys or set items (to hash)")
             h = hash(key)
             counts[h] = counts.get(h, 0) + 1
             if counts[h] > self.limits.max_equal_hashes:
@@ -243,7 +260,8 @@ class Unpickler(_Base):
         ):
             return 1
         if kind is fractions.Fraction:
-            return 2 + (key.numerator.bit_length() + key.denominator.bit_length()) // 64
+            # The numerator's hash and the denominator's modular inverse: twice an int's work.
+            return 2 + (key.numerator.bit_length() + key.denominator.bit_length()) // 32
         if kind not in (tuple, frozenset):
             raise CodecError(f"a {kind.__name__} cannot be a dict key or set item in a result")
         known = self.key_weights.get(id(key))
@@ -257,8 +275,8 @@ class Unpickler(_Base):
         if kind is tuple:
             for item in key:
                 weight += self._key_weight(item, depth + 1)
-                if weight > self.limits.max_hash_work:
-                    raise CodecError("the result's dict keys or set items are too costly to hash")
+                if self.work + weight > self.work_budget:
+                    self.charge(weight, "dict keys or set items (to hash)")
         self.key_weights[id(key)] = (key, weight)  # immutable: its weight never changes
         return weight
 

@@ -63,11 +63,10 @@ def copy(src: Path, dst: Path) -> Path:
 def test_unwritable_out_is_refused_before_grading(tmp_path, capsys):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
-    start = time.monotonic()
     code = grade(SUBMISSIONS / "correct.ipynb", "--out", blocker / "grades")
-    err = capsys.readouterr().err
-    assert code == 2 and err.startswith("robolab: error: --out") and err.count("\n") == 1
-    assert time.monotonic() - start < 2  # nothing was graded
+    printed = capsys.readouterr()
+    assert code == 2 and printed.err.startswith("robolab: error: --out")
+    assert printed.err.count("\n") == 1 and printed.out == ""  # nothing was graded
     assert grade(SUBMISSIONS / "correct.ipynb", "--out", blocker) == 2
 
 
@@ -106,7 +105,7 @@ def test_a_file_name_that_is_not_utf8_is_graded(tmp_path):
     table = csv_rows(out)  # valid UTF-8
     assert len(table) == 3
     bad = next(r for r in table if "broken" in r["path"])
-    assert "not a readable notebook" in bad["errors"] and "\\xff" in bad["errors"]
+    assert "is not a notebook: not valid JSON" in bad["errors"] and "\\xff" in bad["errors"]
     json.loads((out / "gradebook.json").read_bytes().decode("utf-8"))
     row = next(r for r in table if "caf" in r["path"])
     assert row["total"] == "100" and "\\xe9" in row["path"]
@@ -190,14 +189,15 @@ def test_interrupt_leaves_a_valid_partial_gradebook_and_resumes(tmp_path, projec
     ]
     env = dict(os.environ, ROBOLAB_ROOT=str(project))
     proc = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:  # wait until both fast ones are written down
+    # An event, not a sleep: both fast ones are written down (the hanging one then runs or
+    # is about to; it never ends). The bounds only catch a hang, at any load.
+    deadline = time.monotonic() + 600
+    while time.monotonic() < deadline:
         if (out / "gradebook.json").is_file() and len(rows(out)) == 2:
             break
         time.sleep(0.2)
-    time.sleep(1.0)  # the hanging one is now running
     proc.send_signal(sig)
-    stdout, stderr = proc.communicate(timeout=30)
+    stdout, stderr = proc.communicate(timeout=600)
     assert proc.returncode == 130, stderr
     assert "Run the same command again" in stderr and "Traceback" not in stderr
     table = csv_rows(out)
@@ -209,7 +209,7 @@ def test_interrupt_leaves_a_valid_partial_gradebook_and_resumes(tmp_path, projec
     assert not leftover.strip(), "a pytest run outlived the interrupted batch"
     # resume: the finished ones are kept, the rest is graded
     copy(SUBMISSIONS / "correct.ipynb", hang)
-    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
+    done = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=900)
     assert done.returncode == 0, done.stderr
     assert "2 unchanged submission(s) kept" in done.stdout
     assert set(rows(out)) == {"correct", "partial", "zz_hangs"}

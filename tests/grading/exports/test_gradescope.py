@@ -62,7 +62,7 @@ def protect(source: Path) -> None:
 def run_autograder(home: Path) -> subprocess.CompletedProcess:
     env = dict(os.environ, ROBOLAB_AUTOGRADER_DIR=str(home), ROBOLAB_PYTHON=sys.executable)
     return subprocess.run(
-        ["bash", str(home / "run_autograder")], env=env, capture_output=True, text=True, timeout=300
+        ["bash", str(home / "run_autograder")], env=env, capture_output=True, text=True, timeout=900
     )
 
 
@@ -238,3 +238,20 @@ def test_late_policy_from_submission_metadata():
     # a user's own due date (an extension) wins over the assignment's
     metadata["users"][0]["assignment"] = {"due_date": "2026-03-05T00:00:00+00:00"}
     assert results_json(_result("x"), options, metadata)["score"] == 40
+
+
+def test_gradescope_refuses_to_replace_a_file_that_is_not_a_bundle(tmp_path, capsys):
+    # Issue 25: `-o keep.csv` silently replaced the instructor's file.
+    keep = tmp_path / "keep.csv"
+    keep.write_text("id,name\n")
+    other_zip = tmp_path / "other.zip"
+    with zipfile.ZipFile(other_zip, "w") as zf:
+        zf.writestr("notes.txt", "mine")
+    for path in (keep, other_zip):
+        before = path.read_bytes()
+        assert main(["gradescope", "--lab", "demo", "-o", str(path)]) == 2
+        assert "not a Gradescope autograder bundle" in capsys.readouterr().err
+        assert path.read_bytes() == before
+    bundle = tmp_path / "autograder.zip"
+    assert main(["gradescope", "--lab", "demo", "-o", str(bundle)]) == 0
+    assert main(["gradescope", "--lab", "demo", "-o", str(bundle)]) == 0  # a bundle: rebuilt

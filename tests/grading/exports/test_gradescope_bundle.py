@@ -126,7 +126,7 @@ def grade(home: Path, notebook: Path, created_at: str) -> tuple[subprocess.Compl
         env=_clean_env(ROBOLAB_AUTOGRADER_DIR=str(home)),
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=900,
         cwd=home,
     )
     results = json.loads((home / "results" / "results.json").read_text())

@@ -73,7 +73,7 @@ def confined(request):
     if not seccomp.supported():
         pytest.skip("needs Linux x86_64/aarch64")
     run = subprocess.run(
-        [sys.executable, "-c", CHILD, request.param], capture_output=True, text=True, timeout=120
+        [sys.executable, "-c", CHILD, request.param], capture_output=True, text=True, timeout=900
     )
     assert run.returncode == 0, run.stderr
     return request.param, json.loads(run.stdout.splitlines()[-1])

@@ -89,7 +89,7 @@ def attacks(request):
             ["unshare", "-m", "--propagation", "private", "sh", "-c", script],
             capture_output=True,
             text=True,
-            timeout=300,
+            timeout=900,
         )
         if run.returncode != 0 or not out.exists():
             if "unshare failed" in run.stderr or "mount" in run.stderr:

@@ -107,3 +107,125 @@ def test_the_worker_refuses_delegation_only_while_that_exercise_runs(tmp_path):
             proxy.wrap(4.0)  # and refused again: the guard is per call
     finally:
         proxy.close()
+
+
+# --- every alias of a guarded function refuses (issue 25) ---------------------------------------
+
+
+def _aliases(dotted: str) -> dict[str, object]:
+    """Every way a submission can hold the function behind ``dotted``, taken before the guard.
+
+    Each value is a zero-argument callable reaching the function: inside the guard it
+    must raise DelegationError (refused before its arguments are looked at); outside,
+    the function runs and complains about its missing arguments instead.
+    """
+    import functools
+    import sys
+
+    owner, attr, value = resolve(dotted)
+    if isinstance(owner, type):
+        instance = owner.__new__(owner)
+        if isinstance(value, property):
+            return {"property of an instance": lambda: getattr(instance, attr)}
+        bound = getattr(instance, attr)
+        return {
+            "bound method taken before": bound,
+            "bound method made during": lambda: getattr(instance, attr)(),
+            "class attribute": lambda: getattr(owner, attr)(instance),
+            "bound methods in a list": [bound][0],
+        }
+    function = value
+    defining = sys.modules[function.__module__]
+    namespace: dict = {"f": function}
+    exec(  # noqa: S102 - what a submission's imports cell does
+        f"from {owner.__name__} import {attr} as alias\n"
+        f"import {defining.__name__} as _m\n"
+        "table = {'k': f}\ncopies = [f]\n"
+        "def defaulted(_f=f):\n    return _f()\n",
+        namespace,
+    )
+    holders = {
+        f"as {name}.{attr}": (lambda m=module: getattr(m, attr)())
+        for name, module in list(sys.modules.items())
+        if getattr(module, attr, None) is function
+    }
+    assert len(holders) >= 1 and f"as {defining.__name__}.{attr}" in holders
+    return {
+        **holders,
+        "from-import alias": namespace["alias"],
+        "module alias": lambda: getattr(namespace["_m"], attr)(),
+        "dict copy": namespace["table"]["k"],
+        "list copy": namespace["copies"][0],
+        "default argument": namespace["defaulted"],
+        "partial": functools.partial(function),
+    }
+
+
+@pytest.mark.parametrize("entry", ENTRIES, ids=[f"{lab}.{ex}:{n}" for lab, ex, n in ENTRIES])
+def test_every_alias_copy_and_bound_method_of_a_guarded_function_refuses(entry):
+    _, exercise, dotted = entry
+    aliases = _aliases(dotted)
+    functions = delegation._functions(resolve(dotted)[2])
+    codes = [f.__code__ for f in functions]
+    with forbidden(exercise, {}):
+        for _how, call in aliases.items():
+            with pytest.raises(DelegationError, match=f"write {exercise} yourself"):
+                call()
+    assert [f.__code__ for f in functions] == codes, "the functions' code must be restored"
+    for how, call in aliases.items():
+        try:
+            call()
+        except DelegationError:
+            pytest.fail(f"{dotted} {how} still refuses after the guard")
+        except Exception:  # noqa: BLE001, S110 - missing arguments: the function itself ran
+            pass
+
+
+def test_a_guarded_closure_refuses_and_keeps_its_cells(monkeypatch):
+    """A function with free variables (a decorator's wrapper) is guarded as well and restored."""
+    import robolab.geometry as module
+
+    def make(scale):
+        def scaled(x):
+            return scale * x
+
+        return scaled
+
+    monkeypatch.setattr(module, "scaled_for_test", make(3.0), raising=False)
+    monkeypatch.setitem(FORBIDDEN, "fake", {"ex": ["robolab.geometry.scaled_for_test"]})
+    copy = [module.scaled_for_test]
+    with forbidden("ex", {}), pytest.raises(DelegationError, match="write ex yourself"):
+        copy[0](2.0)
+    assert copy[0](2.0) == 6.0
+
+
+def test_the_worker_refuses_the_guarded_function_through_submodules_and_copies(tmp_path):
+    """Issue 25's attacks through the real worker: robolab.sim.run.clearance_field and
+    filterpy.monte_carlo.resampling (imported as _mc at module level) while likelihood_field
+    and low_variance_resample are graded; other exercises may still use them."""
+    from robolab.grading.running.proxy import StudentCodeError, open_submission
+
+    nb = write_notebook(
+        tmp_path / "aliasing.ipynb",
+        "import numpy as np\nimport robolab.sim.run as _run\n"
+        "import filterpy.monte_carlo.resampling as _mc\n"
+        "RESAMPLERS = {'s': _mc.systematic_resample}\n"
+        "def likelihood_field(grid):\n    return _run.clearance_field(grid)\n"
+        "def low_variance_resample(weights):\n"
+        "    if len(weights) % 2:\n        return RESAMPLERS['s'](weights)\n"
+        "    return _mc.systematic_resample(weights)\n"
+        "def other(weights):\n    return _mc.systematic_resample(weights)\n",
+        lab=None,
+    )
+    # robolab.sim and filterpy take seconds to import on a loaded machine: the default limits.
+    proxy = open_submission(nb)
+    try:
+        assert proxy.problems == []
+        with pytest.raises(StudentCodeError, match="not available while likelihood_field"):
+            proxy.likelihood_field(None)
+        for n in (3, 4):  # the dict copy, the module alias
+            with pytest.raises(StudentCodeError, match="not available while low_variance_res"):
+                proxy.low_variance_resample(np.full(n, 1 / n))
+        assert len(proxy.other(np.full(4, 0.25))) == 4, "other exercises may use filterpy"
+    finally:
+        proxy.close()

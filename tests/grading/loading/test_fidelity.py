@@ -9,6 +9,10 @@ earn every point, with no load problem reported.
 
 The sleeping scratch cell sleeps 45 s when graded (the grader must skip it:
 the whole variant is graded well within that) and 0.2 s in Jupyter.
+
+tests/grading/loading/fidelity_constructs.py adds one notebook per lab (every lab) whose
+exercises are each bound in a style only running the notebook reveals; the test
+classes below, one per construct, check each style on the exercise it was given.
 """
 
 from __future__ import annotations
@@ -19,12 +23,23 @@ import nbformat
 import pytest
 
 from robolab.grading.running.runner import grade_all
+from tests.grading.loading.fidelity_constructs import (
+    BRANCHES,
+    CONSTRUCTS,
+    DYNAMIC,
+    FILES,
+    LABS,
+    MAIN,
+    combinations,
+)
 from tests.grading.loading.fidelity_variants import LONG_SLEEP, PLAN, variants, wrong_variants
 
 pytestmark = pytest.mark.slow
 
 VARIANTS = variants()
-BY_NAME = {v.name: v for v in VARIANTS}
+#: One notebook per lab, each exercise bound in one of the constructs' styles.
+COMBINATIONS = combinations()
+BY_NAME = {v.name: v for v in VARIANTS + COMBINATIONS}
 #: Run by Jupyter too: their visible checks fail there, and in `robolab check`.
 WRONG = wrong_variants()
 
@@ -73,6 +88,8 @@ def _same(got, want, where):
 
 
 np = _np
+for _name in {names}:
+    assert callable(globals().get(_name)), f"{{_name}} is not defined"
 for _name, _args in {cases}:
     _same(globals()[_name](*_args), getattr(_ref, _name)(*_args), _name)
 print("FIDELITY OK {name}")
@@ -85,14 +102,26 @@ def test_the_suite_covers_enough_styles_and_labs():
     assert {v.lab for v in VARIANTS} >= {"demo", "bayes", "frames"}
 
 
+def test_every_construct_style_is_given_to_an_exercise_in_every_lab():
+    given = {style for combo in COMBINATIONS for style in combo.assignment.values()}
+    every = {(group, name) for group, styles in CONSTRUCTS.items() for name in styles}
+    assert given == every and len(every) >= 30
+    assert {c.lab for c in COMBINATIONS} == set(LABS)
+    for combo in COMBINATIONS:  # each lab's exercises all carry a style, constructs mixed
+        assert len({group for group, _ in combo.assignment.values()}) >= min(
+            3, len(combo.assignment)
+        )
+
+
 @pytest.fixture(scope="module")
 def jupyter(tmp_path_factory) -> dict[str, tuple[bool, str]]:
     """Run every variant in Jupyter: ``{variant name: (accepted and correct, details)}``."""
     nbclient = pytest.importorskip("nbclient")
     verdicts: dict[str, tuple[bool, str]] = {}
-    for lab in dict.fromkeys(v.lab for v in VARIANTS):
+    for lab in dict.fromkeys(v.lab for v in VARIANTS + COMBINATIONS):
         runs = [v for v in VARIANTS if v.lab == lab]
         runs = runs[:-1] + [v for v in WRONG if v.lab == lab] + runs[-1:]  # future last
+        runs = [v for v in COMBINATIONS if v.lab == lab] + runs
         combined = nbformat.v4.new_notebook()
         combined.metadata["kernelspec"] = {"name": "python3", "display_name": "Python 3"}
         spans: dict[str, tuple[int, int]] = {}
@@ -101,7 +130,12 @@ def jupyter(tmp_path_factory) -> dict[str, tuple[bool, str]]:
             combined.cells += variant.notebook(for_jupyter=True).cells
             combined.cells.append(
                 nbformat.v4.new_code_cell(
-                    ORACLE.format(lab=lab, cases=CASES[lab], name=variant.name)
+                    ORACLE.format(
+                        lab=lab,
+                        cases=CASES.get(lab, "[]"),
+                        names=sorted(getattr(variant, "assignment", None) or ()),
+                        name=variant.name,
+                    )
                 )
             )
             spans[variant.name] = (start, len(combined.cells))
@@ -112,7 +146,7 @@ def jupyter(tmp_path_factory) -> dict[str, tuple[bool, str]]:
             )
         client = nbclient.NotebookClient(
             combined,
-            timeout=120,
+            timeout=900,
             kernel_name="python3",
             allow_errors=True,
             resources={"metadata": {"path": str(tmp_path_factory.mktemp(f"jupyter-{lab}"))}},
@@ -150,7 +184,7 @@ def graded(tmp_path_factory) -> dict[str, object]:
     """Grade every variant through the real grading path, two at a time."""
     folder = tmp_path_factory.mktemp("fidelity")
     paths = []
-    for variant in VARIANTS:
+    for variant in BY_NAME.values():
         path = folder / f"{variant.name}.ipynb"
         nbformat.write(variant.notebook(), str(path))
         paths.append(path)
@@ -162,7 +196,7 @@ def graded(tmp_path_factory) -> dict[str, object]:
     return {
         "elapsed": elapsed,
         "broken": results[-1],
-        **{v.name: r for v, r in zip(VARIANTS, results[:-1], strict=True)},
+        **{name: r for name, r in zip(BY_NAME, results[:-1], strict=True)},
     }
 
 
@@ -196,8 +230,10 @@ def test_the_sleeping_scratch_cell_is_skipped(graded):
     sleepers = [v for v in VARIANTS if v.style == "scratch-sleep"]
     assert sleepers
     for variant in sleepers:
-        assert graded[variant.name].seconds < LONG_SLEEP, (
-            f"{variant.name} took {graded[variant.name].seconds:.0f} s to grade"
+        # Its worker was awake (running or sleeping, not waiting for a CPU) for less than
+        # the cell's sleep: the cell did not run, however loaded the machine.
+        assert graded[variant.name].awake_seconds < LONG_SLEEP, (
+            f"{variant.name}'s worker was awake {graded[variant.name].awake_seconds:.0f} s"
         )
 
 
@@ -243,3 +279,55 @@ def test_feedback_names_a_failing_needed_cell_as_the_student_finds_it(graded):
     text = render_feedback(result)
     assert f"cell {position}, `import no_such_module`" in text, text
     assert "ModuleNotFoundError" in text
+
+
+def _slots(group: str) -> list:
+    """``(style, variant, exercise)`` of every exercise given a style of ``group``."""
+    return [
+        pytest.param(style, combo.name, f, id=f"{style}-{combo.lab}-{f}")
+        for combo in COMBINATIONS
+        for f, (g, style) in combo.assignment.items()
+        if g == group
+    ]
+
+
+def pytest_generate_tests(metafunc):
+    """Each construct's class is run for every exercise given one of its styles."""
+    group = getattr(metafunc.cls, "CONSTRUCT", None)
+    if group is not None:
+        metafunc.parametrize("style, variant, exercise", _slots(group))
+
+
+class _ConstructChecks:
+    """For each exercise given a style of the construct: Jupyter holds a working function
+    (its visible check passed there), and grading gives the exercise every point."""
+
+    CONSTRUCT: str
+
+    def test_the_exercise_earns_full_marks(self, jupyter, graded, style, variant, exercise):
+        ok, details = jupyter[variant]
+        assert ok, f"{variant} in Jupyter:\n{details}"
+        result = graded[variant]
+        earned, worth = result.exercise_scores()[exercise]
+        failing = [f"{t.nodeid}: {t.message[:300]}" for t in result.tests if not t.passed]
+        assert earned == worth, (
+            f"{exercise}, bound with style {style!r}, earned {earned}/{worth}:\n"
+            + "\n".join(f for f in failing if exercise in f)
+            + f"\nload problems: {result.problems}"
+        )
+
+
+class TestBindingsInBranchesThatMayNotRun(_ConstructChecks):
+    CONSTRUCT = BRANCHES
+
+
+class TestTheNotebookRunsAsMain(_ConstructChecks):
+    CONSTRUCT = MAIN
+
+
+class TestBindingsNoAnalysisSees(_ConstructChecks):
+    CONSTRUCT = DYNAMIC
+
+
+class TestFilesTheNotebookWritesAndRuns(_ConstructChecks):
+    CONSTRUCT = FILES

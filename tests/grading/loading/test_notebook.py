@@ -67,7 +67,6 @@ def test_a_continuation_line_starting_with_percent_is_not_a_magic():
         ("\n%%time\n%matplotlib inline\ndef f():\n    return 1\n", True),
         ("%%timeit\ndef f():\n    return 1\n", False),
         ("%%bash\necho def f\n", False),
-        ("%%writefile f.py\ndef f():\n    return 1\n", False),
         ("%%html\n<b>def f()</b>\n", False),
     ],
 )
@@ -289,3 +288,45 @@ def test_old_notebook_format_is_refused(tmp_path):
     path.write_text('{"nbformat": 3, "worksheets": [], "cells": []}')
     with pytest.raises(NotebookError, match="v3.ipynb.*format 4"):
         load_notebook(path)
+
+
+@pytest.mark.parametrize(
+    "imports",
+    [
+        "import numpy as np\nfrom math import (pi\n",  # an unclosed parenthesis
+        "import numpy as np\nimport math as m,\n",  # a trailing comma
+        "import numpy as np\n  x = 1\n",  # an indentation error
+    ],
+)
+def test_an_imports_cell_that_does_not_parse_is_named_with_its_error(tmp_path, imports):
+    # Issue 25: every check failed with NameError and no word of the syntax error.
+    path = write_notebook(
+        tmp_path / "n.ipynb",
+        "x = (\n",  # scratch that does not parse and that nothing needs: not reported
+        imports,
+        "def wrap(a):\n    return np.arctan2(np.sin(a), np.cos(a)) + 0 * len(names)\n",
+        "names = ['np', 'pi']\n",
+    )
+    loaded = load_notebook(path, graded=["wrap"])
+    (problem,) = loaded.problems
+    assert problem.kind == "syntax" and problem.cell_index == 1
+    assert problem.where.startswith("cell 2, `import numpy as np`")
+    assert "does not parse" in problem.message and "line 2" in problem.message
+    assert "your graded functions use np," in problem.message  # names bound elsewhere: not
+
+
+def test_the_syntax_error_reaches_grading_and_checking_alike(tmp_path, capsys):
+    from robolab.cli import main
+    from robolab.grading.running.proxy import open_submission
+    from tests.grading import TEST_LIMITS
+
+    path = write_notebook(
+        tmp_path / "n.ipynb",
+        "import numpy as np\nfrom math import (pi\n",
+        "def wrap(a):\n    return np.arctan2(np.sin(a), np.cos(a))\n",
+    )
+    with open_submission(path, limits=TEST_LIMITS) as sub:  # what grading reports
+        assert any("was never closed" in str(p) and "use np" in str(p) for p in sub.problems)
+    main(["check", str(path)])  # what a student checking sees
+    out = capsys.readouterr().out
+    assert "cell 1, `import numpy as np`" in out and "was never closed" in out

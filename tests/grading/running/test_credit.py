@@ -1,12 +1,13 @@
 """Partial credit that follows an exercise's parts, and hints across exercises (pytest_plugin).
 
-Unit tests of :func:`robolab.grading.running.pytest_plugin.settle` on report records;
+Unit tests of :func:`robolab.grading.running.credit.settle` on report records;
 the mutation suite (``tests/labs/mutants``) checks the same through real grading.
 """
 
 from __future__ import annotations
 
-from robolab.grading.running.pytest_plugin import failure_message, settle
+from robolab.grading.running.credit import settle
+from robolab.grading.running.pytest_plugin import failure_message
 
 
 def _rec(test, outcome, exercise="f", requires=(), uses=(), message=""):
@@ -55,7 +56,7 @@ def test_every_parametrization_of_a_required_test_counts_and_gates_chain():
 
 
 def test_a_failure_points_to_the_wrong_function_it_uses():
-    """When p_max fails its own checks, a failing model test says it may be because of p_max."""
+    """When p_max fails its own checks, a failing model test notes that p_max is wrong too."""
     raw = [
         _rec("test_p_max", "failed", exercise="p_max"),
         _rec("test_p_hit", "passed", exercise="p_hit"),

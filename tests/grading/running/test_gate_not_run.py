@@ -87,7 +87,7 @@ def test_a_gated_test_is_not_run_once_its_requirement_failed(tmp_path):
         cwd=tmp_path,
         capture_output=True,
         text=True,
-        timeout=120,
+        timeout=900,
     )
     records = {r["name"]: r for r in json.loads(report.read_text())["tests"]}
     assert not (ran / "e2e").exists(), (

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from dataclasses import replace
 
 import numpy as np
@@ -157,27 +156,33 @@ def test_crash_costs_one_call_and_the_worker_restarts(proxy):
 
 
 def test_wall_time_limit(proxy):
-    start = time.monotonic()
-    with pytest.raises(WorkerTimeout, match="wall time"):
+    # What the wall limit counts (time not spent waiting for a CPU) is charged, at least the
+    # limit and at most a poll interval more, whatever the machine's load.
+    before = proxy.spent_seconds
+    with pytest.raises(WorkerTimeout, match=f"{TEST_LIMITS.wall_seconds:g} s of wall time"):
         proxy.hang()
-    assert time.monotonic() - start < TEST_LIMITS.wall_seconds + 2
+    assert TEST_LIMITS.wall_seconds <= proxy.spent_seconds - before <= TEST_LIMITS.wall_seconds + 1
     assert proxy.scaled(1.0) == 2.0
     # A function that timed out once gets a tenth of the budget (at least 1 s) from then on.
-    start = time.monotonic()
+    before = proxy.spent_seconds
     with pytest.raises(WorkerTimeout, match="1 s of wall time"):
         proxy.hang()
-    assert time.monotonic() - start < 3
+    assert 1 <= proxy.spent_seconds - before <= 2
+    assert any("hang(): timed out" in line for line in proxy.limits_hit())
 
 
 def test_cpu_time_limit(tmp_path):
     path = write_notebook(tmp_path / "spin.ipynb", FUNCTIONS)
     limits = replace(TEST_LIMITS, cpu_seconds=1, wall_seconds=30)
     with open_submission(path, limits=limits) as sub:
-        start = time.monotonic()
         with pytest.raises(WorkerTimeout, match="CPU time"):
             sub.spin()
-        # The CPU limit stopped it, long before the wall limit (however loaded the machine).
-        assert time.monotonic() - start < limits.wall_seconds
+        # The CPU limit stopped it, not the wall limit (however loaded the machine); the
+        # kernel's RLIMIT_CPU (whole seconds) backs the grader's polling up.
+        assert 1 <= sub.spent_cpu_seconds <= limits.cpu_seconds + 2
+        assert sub.spent_seconds < limits.wall_seconds
+        [line] = sub.limits_hit()
+        assert line.startswith("spin(): timed out: used more than 1 s of CPU time")
 
 
 def test_output_is_captured_and_bounded(proxy):
@@ -221,13 +226,14 @@ def test_a_cell_past_the_load_limit_is_stopped_and_named(tmp_path):
         lab=None,
     )
     limits = replace(TEST_LIMITS, wall_seconds=4)
-    start = time.monotonic()
     with open_submission(path, limits=limits) as sub:
         assert [(p.kind, p.where) for p in sub.problems] == [("timeout", "cell 1, `def f():`")]
         assert "time allowed to load your notebook" in sub.problems[0].message
         assert sub.f() == 1  # defined before the loop, as in the kernel
         assert "Slow" not in sub.functions
-    assert time.monotonic() - start < 8
+        # The load's CPU time is the submission's (the cell spun until the load budget).
+        assert sub.spent_cpu_seconds >= 1
+        assert [line.split(":")[0] for line in sub.limits_hit()] == ["loading the notebook"]
 
 
 def test_definitions_that_hang_fail_every_call_quickly(tmp_path):
@@ -240,13 +246,14 @@ def test_definitions_that_hang_fail_every_call_quickly(tmp_path):
         lab=None,
     )
     limits = replace(TEST_LIMITS, wall_seconds=2)
-    start = time.monotonic()
     sub = open_submission(path, limits=limits)
     try:
         assert any("loading the notebook" in p.message for p in sub.problems)
-        with pytest.raises(WorkerTimeout):
-            sub.f()
-        assert time.monotonic() - start < 8
+        spent = sub.spent_cpu_seconds, sub.spent_seconds
+        for _ in range(3):  # each fails at once: no worker is started, no time is charged
+            with pytest.raises(WorkerTimeout):
+                sub.f()
+            assert sub._worker is None and (sub.spent_cpu_seconds, sub.spent_seconds) == spent
     finally:
         sub.close()
 
@@ -297,25 +304,3 @@ def test_a_forgotten_proxy_does_not_leave_its_worker_running(tmp_path):
     gc.collect()
     assert process.poll() is not None
     assert not base.exists()
-
-
-def test_the_total_budget_is_a_few_times_the_reference_within_bounds():
-    """reference_budget: 8x the reference, at least 60 s, never above 5 per-call limits."""
-    from robolab.grading.running.proxy import Limits, reference_budget
-
-    assert reference_budget(Limits(wall_seconds=60.0), 15.0) == 120.0
-    assert reference_budget(Limits(wall_seconds=60.0), 1.0) == 60.0  # the floor
-    assert reference_budget(Limits(wall_seconds=5.0), 15.0) == 25.0  # the default cap
-    with pytest.raises(ValueError):
-        reference_budget(Limits(), 0.0)
-
-
-def test_every_lab_states_its_reference_time():
-    """Each lab's hidden tests carry REFERENCE_SECONDS, so its budget follows the reference."""
-    import importlib
-
-    from robolab.grading.labs import discover_labs
-
-    for lab in discover_labs():
-        module = importlib.import_module(f"tests.labs.test_{lab.name}")
-        assert getattr(module, "REFERENCE_SECONDS", 0) > 0, f"tests/labs/test_{lab.name}.py"

@@ -211,3 +211,62 @@ def test_a_fraction_from_anything_else_is_refused(args):
     # The constructor's float, Decimal and scientific-notation paths are never reached.
     with pytest.raises(CodecError):
         codec.loads(pickle.dumps(_FractionFrom(*args)))
+
+
+def test_a_scipy_sparse_result_crosses_as_its_triplets():
+    """CSR, CSC and COO matrices (in tuples, lists, dicts) arrive as SparseMatrix, same entries."""
+    import scipy.sparse
+
+    dense = np.array([[4.0, 0.0, 1.0], [0.0, 0.0, 0.0], [1.0, 0.0, 2.5]])
+    coo = scipy.sparse.coo_matrix(([1.0, 3.0], ([0, 0], [0, 0])), shape=(3, 3))  # duplicates summed
+    value = (
+        scipy.sparse.csr_matrix(dense),
+        {"H": [scipy.sparse.csc_matrix(dense)]},
+        coo,
+        np.ones(2),
+    )
+    got = codec.loads(codec.dumps(value))
+    for h in (got[0], got[1]["H"][0]):
+        assert isinstance(h, codec.SparseMatrix), f"expected a SparseMatrix, got {type(h)}"
+        np.testing.assert_array_equal(h.toarray(), dense, err_msg="the dense matrix must survive")
+        assert (h.tosparse() != scipy.sparse.csr_matrix(dense)).nnz == 0
+    assert got[0].format == "csr" and got[1]["H"][0].format == "csc"
+    np.testing.assert_array_equal(got[2].toarray(), [[4, 0, 0], [0, 0, 0], [0, 0, 0]])
+    np.testing.assert_array_equal(got[3], np.ones(2))
+
+
+@pytest.mark.parametrize(
+    "fields",
+    [
+        {"row": np.array([0, 3])},  # outside the shape
+        {"col": np.array([-1, 0])},  # a negative index would wrap around
+        {"shape": (2**40, 2**40)},  # a tiny message promising a huge matrix
+        {"shape": (3, -1)},
+        {"row": np.array([0.0, 1.0])},
+        {"data": np.ones(3)},  # not one value per index
+    ],
+)
+def test_a_sparse_matrix_with_bad_triplets_is_refused_when_read(fields):
+    """A worker's triplets are checked before the grader builds anything from them."""
+    good = {
+        "shape": (3, 3),
+        "row": np.array([0, 1]),
+        "col": np.array([1, 2]),
+        "data": np.ones(2),
+        "format": "csr",
+    }
+    bad = codec.loads(codec.dumps(codec.SparseMatrix(**(good | fields))))
+    for read in (bad.toarray, bad.tosparse):
+        with pytest.raises(CodecError):
+            read()
+
+
+def test_a_pose_graph_round_trips():
+    """robolab.datasets.PoseGraph (lab 09's results) is a registered dataclass."""
+    from robolab.datasets import PoseGraph
+
+    g = PoseGraph(np.zeros((2, 3)), [[0, 1]], [[1.0, 0.0, 0.0]], [np.eye(3)])
+    got = codec.loads(codec.dumps((g, {"objective": np.ones(2)})))[0]
+    assert isinstance(got, PoseGraph)
+    np.testing.assert_array_equal(got.edges, g.edges)
+    np.testing.assert_array_equal(got.information, g.information)

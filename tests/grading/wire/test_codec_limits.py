@@ -9,8 +9,11 @@ from __future__ import annotations
 
 import fractions
 import pickle
+import random
+import re
 import struct
 import sys
+import time
 import tracemalloc
 
 import numpy as np
@@ -287,3 +290,157 @@ def test_every_robolab_dataclass_round_trips_and_stays_checked():
     refused(empty, "without its fields")
     hollow = pickle.dumps(grid, protocol=5).replace(b"resolution", b"resolutiom")
     refused(hollow, "fields")
+
+
+# --- work that grows faster than the message (issue 25) -------------------------------------------
+#
+# The stream can name one object again and again through the memo (BINGET costs 2 bytes), so
+# any operation whose cost depends on the size of its arguments -- the gcd normalising a
+# Fraction, parsing its decimal text, hashing a key, copying a buffer -- could cost the grader
+# far more than the message's size. Work is measured as CPU time relative to decoding a plain
+# message of the same size in the same run (never as absolute time), and as the unpickler's
+# deterministic work count.
+
+#: Most CPU time a message may cost, as a multiple of decoding a plain message of its size.
+CPU_RATIO = 12
+
+
+def _odd(bits: int, seed: int) -> int:
+    return random.Random(seed).getrandbits(bits) | 1 | (1 << (bits - 1))
+
+
+def _fraction_bombs(copies: int) -> bytes:
+    args = (_odd(2**16 - 1, 1), _odd(2**16 - 1, 2))  # one tuple: the pickle refers back to it
+    return pickle.dumps([Reduce(fractions.Fraction, args) for _ in range(copies)], protocol=5)
+
+
+def _fraction_text_bombs(copies: int) -> bytes:
+    args = (f"{_odd(14_000, 3)}/{_odd(14_000, 4)}",)  # 4215 digits each, within the text form
+    return pickle.dumps([Reduce(fractions.Fraction, args) for _ in range(copies)], protocol=5)
+
+
+def _hash_bombs(copies: int) -> bytes:
+    key = (_odd(2**16 - 1, 5),) * 8  # hash() of a tuple is not cached: the int is read 8 times
+    return pickle.dumps([{key: i} for i in range(copies)], protocol=5)
+
+
+def _fraction_key_bombs(copies: int) -> bytes:
+    key = fractions.Fraction(_odd(2**16 - 1, 6), 3**40)  # its hash is a modular inverse
+    return pickle.dumps([{key: i} for i in range(copies)], protocol=5)
+
+
+def _frozenset_bombs(copies: int) -> bytes:
+    key = 1
+    for _ in range(5):
+        key = (key,) * 10  # 1e5 leaves, a few hundred bytes
+    args = ([key],)
+    return pickle.dumps([Reduce(frozenset, args) for _ in range(copies)], protocol=5)
+
+
+def _bytearray_bombs(copies: int) -> bytes:
+    args = (b"x" * 2**20,)
+    return pickle.dumps([Reduce(bytearray, args) for _ in range(copies)], protocol=5)
+
+
+def _deep_bombs(copies: int) -> bytes:
+    deep = _nested(1.0, 1, codec.MAX_DEPTH - 2)
+    return codec.dumps([deep] * copies)
+
+
+BOMBS = {
+    "fractions": _fraction_bombs,
+    "fraction-text": _fraction_text_bombs,
+    "tuple-keys": _hash_bombs,
+    "fraction-keys": _fraction_key_bombs,
+    "frozensets": _frozenset_bombs,
+    "bytearrays": _bytearray_bombs,
+    "deep-lists": _deep_bombs,
+}
+
+
+def _cpu(data: bytes) -> float:
+    """Least CPU time of three decodes of ``data`` (accepted or refused)."""
+    best = float("inf")
+    for _ in range(3):
+        start = time.thread_time()
+        try:
+            codec.loads(data)
+        except CodecError:
+            pass
+        best = min(best, time.thread_time() - start)
+    return best
+
+
+def _plain(size: int) -> bytes:
+    """A plain message of floats of about ``size`` bytes (9 bytes a float)."""
+    return codec.dumps([float(i) for i in range(max(size // 9, 1))])
+
+
+@pytest.mark.parametrize("name", BOMBS)
+def test_decoding_costs_a_small_multiple_of_a_plain_message_of_the_same_size(name):
+    data = BOMBS[name](2000)
+    baseline = _cpu(_plain(len(data)))
+    cost = _cpu(data)
+    assert cost <= CPU_RATIO * baseline, (
+        f"{name}: {len(data)} bytes took {cost / baseline:.0f} times a plain message's CPU"
+    )
+
+
+@pytest.mark.parametrize("name", BOMBS)
+def test_the_work_counted_is_within_the_messages_budget(name, monkeypatch):
+    # Deterministic: the decoder counts the work it does beyond reading, and the count
+    # never exceeds base + per-byte budget, however many times an object is referred to.
+    from robolab.grading.wire import unpickler
+
+    seen = []
+    real = unpickler.Unpickler.load
+
+    def load(self):
+        try:
+            return real(self)
+        finally:
+            seen.append((self.work, self.work_budget, self.size))
+
+    monkeypatch.setattr(unpickler.Unpickler, "load", load)
+    for copies in (1, 10, 1000):
+        try:
+            codec.loads(BOMBS[name](copies))
+        except CodecError as error:
+            assert re.search("cost more work|nested deeper|more bytes than", str(error))
+    for work, budget, size in seen:
+        assert budget == codec.LIMITS.base_work + codec.LIMITS.work_per_byte * size
+        # The last charge may pass the budget once (it is refused before it runs).
+        assert work <= budget + (2**16 // 64 + 1) ** 2
+
+
+@pytest.mark.parametrize("name", ["fractions", "fraction-text", "tuple-keys", "bytearrays"])
+def test_many_references_to_one_costly_object_are_refused(name):
+    error = refused(BOMBS[name](2000), "cost more work|more bytes than its message")
+    assert "\n" not in str(error)
+
+
+def test_one_costly_object_in_its_own_bytes_still_decodes():
+    # A single big Fraction pays for its gcd with its own bytes; so do distinct ones.
+    big = fractions.Fraction(_odd(2**16 - 1, 7), _odd(2**16 - 1, 8))
+    assert codec.loads(codec.dumps(big)) == big
+    exact = [fractions.Fraction(3, 7) ** k for k in range(1, 300)]
+    assert codec.loads(codec.dumps(exact)) == exact
+    keys = {(i, i + 1, (i, "cell")): fractions.Fraction(i, 7) for i in range(10_000)}
+    assert codec.loads(codec.dumps(keys)) == keys
+
+
+def test_decoding_is_charged_to_the_call_that_sent_the_result(tmp_path, monkeypatch):
+    # The grader's CPU spent decoding counts against the call's CPU budget: a clock that
+    # says each decode took 5 s turns a cheap call into a timeout naming the decoding.
+    from dataclasses import replace
+
+    from robolab.grading.running import channel, proxy
+    from tests.grading import TEST_LIMITS, write_notebook
+
+    path = write_notebook(tmp_path / "sub.ipynb", "def half(x):\n    return x / 2\n")
+    with proxy.open_submission(path, limits=replace(TEST_LIMITS, cpu_seconds=1)) as sub:
+        assert sub.half(3.0) == 1.5
+        ticks = iter(range(0, 1000, 5))
+        monkeypatch.setattr(channel, "decode_clock", lambda: float(next(ticks)))
+        with pytest.raises(proxy.WorkerTimeout, match="decoding its result: 5.0 s"):
+            sub.half(3.0)

@@ -10,8 +10,9 @@ it is spliced, since the solved notebook defines those helpers already.
 A mutant's notebook is the lab's solved notebook (``robolab solve``) with that
 one function's definition replaced by the mutant's source. To keep ``make
 test`` quick, mutants of *independent* exercises share a notebook: two
-exercises are independent when neither's reference solution calls the other
-(transitively), so each one's points still depend only on its own mutant.
+exercises are independent when neither is below the other (the grader's
+dependency table, robolab.grading.running.answers), so each one's points depend
+only on its own mutant, and what a notebook loses elsewhere is collateral.
 
 Two more variants per lab grade the "free points" problem: every exercise
 raising ValueError, and every exercise returning its first argument.
@@ -26,8 +27,9 @@ from pathlib import Path
 
 import nbformat
 
-from robolab.grading.exports.solve import SolutionSource, solve_notebook
+from robolab.grading.exports.solve import solve_notebook
 from robolab.grading.labs import Lab, exercise_cells
+from robolab.grading.running.answers import dependency_table
 
 HERE = Path(__file__).resolve().parent
 
@@ -47,6 +49,7 @@ CLASSES = {
     "formula": "a wrong core formula (a sign, a transpose, a missing factor)",
     "result-type": "the wrong type, shape or exactness of the result",
     "delegation": "calling the library's own version of the exercise",
+    "minimum-size": "the smallest valid input: one pose, particle, beam, landmark or state",
 }
 
 
@@ -160,38 +163,132 @@ def _first_argument(node: ast.FunctionDef) -> str | None:
     return positional[0].arg if positional else None
 
 
-def free_points_variant(lab: Lab, kind: str) -> nbformat.NotebookNode:
-    """The solved notebook with every exercise replaced by a function that only
+#: The "free points" notebooks: every exercise replaced by a function that only ...
+FREE_POINTS = {
+    "raises": "raises ValueError (a refusal of every input)",
+    "echo": "returns its first argument unchanged",
+    "zeros": "returns zeros of the right shape (the reference's result, zeroed)",
+    "clobber": "zeroes every array it is given, in place, and returns its first argument",
+}
 
-    - ``kind="raises"``: raises ValueError (a "refusal" of every input), or
-    - ``kind="echo"``: returns its first argument unchanged.
+#: A cell put before the exercises of the "zeros" and "clobber" notebooks. ``{solution}``
+#: is the reference module's source: the zeros stub needs the shape of the right answer.
+_HELPERS = """\
+import dataclasses as _dataclasses
+import numbers as _numbers
+
+import numpy as _np
+
+_REFERENCE = {{"__name__": "_reference"}}
+exec(compile({solution!r}, "reference", "exec"), _REFERENCE)
+
+
+def _zeros_like(x):
+    if isinstance(x, _np.ndarray):
+        return _np.zeros_like(x)
+    if hasattr(x, "tocsr") and hasattr(x, "shape"):  # a scipy.sparse matrix: no entries
+        return type(x)(x.shape, dtype=x.dtype)
+    if isinstance(x, (bool, _np.bool_)):
+        return False
+    if isinstance(x, _numbers.Number):  # int, float, Fraction, numpy scalars
+        return type(x)(0)
+    if isinstance(x, (tuple, list)):
+        return type(x)(_zeros_like(v) for v in x)
+    if isinstance(x, dict):
+        return {{k: _zeros_like(v) for k, v in x.items()}}
+    if _dataclasses.is_dataclass(x):
+        arrays = {{
+            f.name: _np.zeros_like(getattr(x, f.name))
+            for f in _dataclasses.fields(x)
+            if isinstance(getattr(x, f.name), _np.ndarray)
+        }}
+        return _dataclasses.replace(x, **arrays)
+    return x
+
+
+def _clobber(x):
+    if isinstance(x, _np.ndarray) and x.flags.writeable and x.dtype.kind in "biufc":
+        x[...] = 0
+    elif isinstance(x, (tuple, list)):
+        for v in x:
+            _clobber(v)
+    elif isinstance(x, dict):
+        for v in x.values():
+            _clobber(v)
+"""
+
+
+def _standalone_source(path: Path) -> str:
+    """A solution module's source that runs without ``solutions`` (submissions cannot import
+    it): each ``from solutions.<m> import ...`` is replaced by module ``m``'s own source."""
+    text = path.read_text()
+    lines = text.splitlines()
+    before: list[str] = []
+    for node in reversed(ast.parse(text).body):
+        if isinstance(node, ast.ImportFrom) and (
+            node.module == "__future__" or (node.module or "").startswith("solutions.")
+        ):
+            if node.module != "__future__":
+                module = path.parent / f"{node.module.split('.')[1]}.py"
+                before.insert(0, _standalone_source(module))
+            del lines[node.lineno - 1 : node.end_lineno]
+    return "\n".join(before + lines) + "\n"
+
+
+def _call_arguments(node: ast.FunctionDef) -> str:
+    """The arguments that pass each parameter of ``node`` on, as in its own signature."""
+    a = node.args
+    parts = [p.arg for p in a.posonlyargs + a.args]
+    parts += [f"*{a.vararg.arg}"] if a.vararg else []
+    parts += [f"{p.arg}={p.arg}" for p in a.kwonlyargs]
+    parts += [f"**{a.kwarg.arg}"] if a.kwarg else []
+    return ", ".join(parts)
+
+
+def _parameter_names(node: ast.FunctionDef) -> list[str]:
+    a = node.args
+    names = [p.arg for p in a.posonlyargs + a.args + a.kwonlyargs]
+    return names + [v.arg for v in (a.vararg, a.kwarg) if v is not None]
+
+
+def free_points_variant(lab: Lab, kind: str) -> nbformat.NotebookNode:
+    """The solved notebook with every exercise replaced by a function that only does
+    what :data:`FREE_POINTS` says for ``kind``. Each must earn 0: refusal tests pay only
+    for working functions, invariance tests only when the values are right, and tests
+    compare with copies of the inputs taken before the call.
     """
+    if kind not in FREE_POINTS:
+        raise ValueError(f"kind must be one of {sorted(FREE_POINTS)}, got {kind!r}")
     nb = solved(lab)
     stub = nbformat.read(str(lab.notebook), as_version=4)
     for _, funcs in exercise_cells(stub):
         for node in funcs:
             first = _first_argument(node)
-            if kind == "raises" or first is None:
+            if kind == "raises" or (first is None and kind != "zeros"):
                 body = 'raise ValueError("refused")'
             elif kind == "echo":
                 body = f"return {first}"
+            elif kind == "zeros":
+                body = f"return _zeros_like(_REFERENCE[{node.name!r}]({_call_arguments(node)}))"
             else:
-                raise ValueError(f"kind must be 'raises' or 'echo', got {kind!r}")
+                names = ", ".join(_parameter_names(node))
+                body = f"for _argument in ({names},):\n    _clobber(_argument)\nreturn {first}"
             src = f"def {node.name}({_signature(node)}):\n" + textwrap.indent(body, "    ")
             nb = replace_function(nb, node.name, src)
+    if kind in ("zeros", "clobber"):
+        first_exercise = min(index for index, _ in exercise_cells(nb))
+        helpers = _HELPERS.format(solution=_standalone_source(lab.solution))
+        nb.cells.insert(first_exercise, nbformat.v4.new_code_cell(helpers))
     return nb
 
 
-def _calls(lab: Lab) -> dict[str, set[str]]:
-    """For each exercise, the other exercises its reference solution calls, transitively."""
-    source = SolutionSource.read(lab.solution)
-    names = exercises(lab)
-    out = {}
-    for name in names:
-        reach = set(source.dependencies([name], exclude=set()))
-        # dependencies() stops at exercises in `exclude` only; look through every name
-        out[name] = {n for n in reach | set(source.uses.get(name, ())) if n in names} - {name}
-    return out
+def _calls(lab: Lab) -> dict[str, frozenset[str]]:
+    """For each exercise, the exercises below it: those the grader answers as the reference
+    while it is graded (its reference solution's calls and the hidden tests' ``USES``)."""
+    import importlib
+
+    declared = getattr(importlib.import_module(f"tests.labs.test_{lab.name}"), "USES", None)
+    return dependency_table(lab.solution, exercises(lab), declared)
 
 
 def packs(lab: Lab, mutants: list[Mutant]) -> list[list[Mutant]]:

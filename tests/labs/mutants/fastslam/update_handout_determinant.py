@@ -25,7 +25,7 @@ def update_landmark(mean, cov, z, pose, Qt):
     Ht = np.swapaxes(H, -1, -2)
     PHt = sigma @ Ht
     S = H @ PHt + qt
-    S_inv, det_S = _inv2(S)
+    S_inv, logdet_S = _inv2(S)
     K = PHt @ S_inv
     e = zz - zhat
     e = np.concatenate([e[..., :1], wrap_angle(e[..., 1:2])], -1)
@@ -33,5 +33,5 @@ def update_landmark(mean, cov, z, pose, Qt):
     new_cov = sigma - K @ H @ sigma
     new_cov = 0.5 * (new_cov + np.swapaxes(new_cov, -1, -2))
     maha = np.einsum("...i,...ij,...j->...", e, S_inv, e)
-    log_like = -0.5 * maha + np.log(2.0 * np.pi) + 0.5 * np.log(det_S)
+    log_like = -0.5 * maha + np.log(2.0 * np.pi) + 0.5 * logdet_S
     return new_mean, new_cov, log_like

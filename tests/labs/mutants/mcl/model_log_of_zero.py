@@ -12,14 +12,17 @@ import math
 import numpy as np
 
 from robolab.geometry import compose
+from robolab.maps import OccupancyGrid
 from robolab.validation import as_array, as_poses
-from solutions.mcl import _field_arrays, _gaussian, _mixture, _params, _scan_arrays, _used_beams
+from solutions.mcl import _gaussian, _mixture, _params, _scan_arrays, _used_beams
 
 
 def likelihood_field_model(scan, particles, field, params):
     p = as_poses("particles", particles)
     ranges, angles, _, rmax = _scan_arrays(scan)
-    dist, sigma, dmax, geometry = _field_arrays(field)
+    dist = np.asarray(field["distance"], dtype=float)
+    sigma, dmax = float(field["sigma_hit"]), float(field["max_dist"])
+    geometry = OccupancyGrid(np.zeros((1, 1)), field["resolution"], field["origin"])
     prm = _params(params)
     z_hit, z_rand = _mixture(prm)
     laser = as_array("params['laser_pose']", prm["laser_pose"], shape=(3,), finite=True)

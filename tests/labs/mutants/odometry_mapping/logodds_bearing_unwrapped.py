@@ -23,7 +23,7 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     out = _layer("logodds", logodds, grid)
     ranges, angles, rmin, rmax = _scan_arrays(scan)
     laser = _pose("pose", pose)
-    p = _sensor_model_params(inverse_sensor_model_params)
+    p = _sensor_model_params(inverse_sensor_model_params, grid.resolution)
     hit, no_return = _beam_kinds(ranges, rmin, rmax)
     used = hit | no_return
     if not np.any(used):

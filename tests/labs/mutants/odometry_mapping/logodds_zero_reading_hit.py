@@ -22,7 +22,7 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     out = _layer("logodds", logodds, grid)
     ranges, angles, rmin, rmax = _scan_arrays(scan)
     laser = _pose("pose", pose)
-    p = _sensor_model_params(inverse_sensor_model_params)
+    p = _sensor_model_params(inverse_sensor_model_params, grid.resolution)
     with np.errstate(invalid="ignore"):
         hit = np.isfinite(ranges) & (ranges >= rmin) & (ranges < rmax)
         no_return = ranges >= rmax
