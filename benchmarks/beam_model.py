@@ -191,7 +191,8 @@ def main():
             "  baseline: model composed of p_hit + p_short + ...",
             float("nan"),
             cpu["composed"],
-            f"interleaved: fused {cpu['fused'] * 1e3:.1f} ms, {cpu['composed'] / cpu['fused']:.2f}x",
+            f"interleaved: fused {cpu['fused'] * 1e3:.1f} ms, "
+            f"{cpu['composed'] / cpu['fused']:.2f}x",
         )
     )
     g = np.arange(25) * 0.4 + 0.225  # 25 x 25 positions (cell centres), 4 headings

@@ -438,7 +438,8 @@ def _mixture(z: np.ndarray, z_star: np.ndarray, prm: dict[str, float]) -> np.nda
         )
     # A reading shared by all poses is a stride-0 view: its own terms are computed once.
     base = z[:1] if z.ndim == 2 and z.strides[0] == 0 else z
-    flat = np.where(base == zmax, prm["z_max"], 0.0) + np.where(base < zmax, prm["z_rand"] / zmax, 0.0)
+    flat = np.where(base == zmax, prm["z_max"], 0.0)
+    flat = flat + np.where(base < zmax, prm["z_rand"] / zmax, 0.0)
     short_coef = prm["z_short"] * lam * np.exp(-lam * base)
     u = z - z_star
     u /= sigma

@@ -563,7 +563,7 @@ def _blocked_ekf_update(mu, sigma, zz, poses, qt):
         _ekf_update(mu[i : i + per], sigma[i : i + per], zz, poses[i : i + per, None, :], qt)
         for i in range(0, m, per)
     ]
-    return tuple(np.concatenate(arrays) for arrays in zip(*parts))
+    return tuple(np.concatenate(arrays) for arrays in zip(*parts, strict=True))
 
 
 def _ess_fraction(resample) -> float | None:

@@ -25,8 +25,8 @@ import math
 import numpy as np
 from scipy import ndimage
 
-from robolab.geometry import angle_diff, compose, wrap_angle
 from robolab.fieldsum import table_sum
+from robolab.geometry import angle_diff, compose, wrap_angle
 from robolab.maps import OccupancyGrid
 from robolab.tablecache import cached_table, freeze
 from robolab.validation import LOG_FLOAT_MAX, as_array, as_poses, check_positive
