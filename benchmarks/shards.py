@@ -57,7 +57,7 @@ def _batch(folder: Path, labs: list[str], copies: int) -> dict[str, list[str]]:
 
 def _rows(folder: Path) -> list[dict]:
     rows = json.loads((folder / "gradebook.json").read_text())
-    return [{k: v for k, v in r.items() if k != "seconds"} for r in rows]
+    return [{k: v for k, v in r.items() if k not in ("seconds", "cpu_seconds")} for r in rows]
 
 
 def main() -> int:

@@ -18,10 +18,13 @@ ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = sorted((ROOT / "benchmarks").glob("*.py"))
 #: Benchmarks that read ../shared/data (they fail without it, as they should).
 NEEDS_SHARED = {"raycast"}
-#: Benchmarks that are whole pipelines of their own, exercised elsewhere in the suite
-#: (benchmarks/grading.py grades with the CLI: tests/grading; notebooks.py runs every
-#: solved notebook: make test's nbval run).
-ELSEWHERE = {"grading", "notebooks"}
+#: Benchmarks that are whole grading pipelines of their own (minutes even at their
+#: smallest), exercised elsewhere in the suite: grading.py grades with the CLI
+#: (tests/grading), notebooks.py runs every solved notebook (make test's nbval run),
+#: shards.py shards and merges (tests/grading/course/test_shards.py), load.py grades beside
+#: busy loops (tests/grading/running/test_load.py), gradescope_memory.py installs and runs
+#: bundles (tests/grading/exports/test_gradescope_bundle.py), install.py a fresh venv.
+ELSEWHERE = {"grading", "notebooks", "shards", "load", "gradescope_memory", "install"}
 
 
 @pytest.mark.slow

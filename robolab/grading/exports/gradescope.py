@@ -79,8 +79,8 @@ if ! "$PYTHON3" -c 'import sys, venv, ensurepip; assert sys.version_info >= (3, 
 fi
 "$PYTHON3" -m venv "$VENV"
 # robolab (editable, so that it finds source/data and the hidden tests next to it) and
-# pytest, which runs the hidden tests (it is not a runtime dependency of robolab).
-"$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -e "$SOURCE" "pytest>=8.0"
+# pytest, which runs the hidden tests, and nbformat (the instructor extra's, without copydetect).
+"$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -e "$SOURCE" "pytest>=8.0" "nbformat>=5.9"
 # The answers: root only. Everything the worker needs: readable by every uid.
 if [ "$(id -u)" = 0 ]; then chown -R 0:0 "$SOURCE/solutions" "$SOURCE/tests"; fi
 chmod -R go-rwx "$SOURCE/solutions" "$SOURCE/tests"

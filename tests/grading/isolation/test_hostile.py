@@ -138,7 +138,9 @@ def test_hostile_submission(name, request):
                 getattr(sub, attacked)(*args)
             assert isinstance(info.value, StudentCodeError)
             if name in RESULT_ATTACKS:
-                assert info.value.kind == "result"
+                # refused by the codec; on a busy machine the grader's decoding CPU, charged
+                # to the call, may reach the call's CPU limit first: refused all the same
+                assert info.value.kind in ("result", "timeout"), info.value
                 assert RESULT_ATTACKS[name] in str(info.value) and "\n" not in str(info.value)
         # Stopped by a limit, whatever the machine's load: its time is charged, and bounded.
         assert sub.spent_seconds - spent[0] < BOUND

@@ -438,7 +438,8 @@ def test_decoding_is_charged_to_the_call_that_sent_the_result(tmp_path, monkeypa
     from tests.grading import TEST_LIMITS, write_notebook
 
     path = write_notebook(tmp_path / "sub.ipynb", "def half(x):\n    return x / 2\n")
-    with proxy.open_submission(path, limits=replace(TEST_LIMITS, cpu_seconds=1)) as sub:
+    limits = replace(TEST_LIMITS, cpu_seconds=1, total_cpu_seconds=100)  # the call's limit binds
+    with proxy.open_submission(path, limits=limits) as sub:
         assert sub.half(3.0) == 1.5
         ticks = iter(range(0, 1000, 5))
         monkeypatch.setattr(channel, "decode_clock", lambda: float(next(ticks)))
