@@ -705,7 +705,7 @@ for a, m in enumerate(n_particles):
         sweep[a, s, 1] = np.hypot(*(out["path"][-1, :2] - run.true_poses[-1, :2]))
 plot_error_vs_particles(n_particles, sweep, title="Particle depletion: error against the number of particles")
 plt.show()
-print("median landmark RMSE [m] per M:", dict(zip(n_particles.tolist(), np.round(np.median(sweep[:, :, 0], 1), 3))))
+print("median landmark RMSE [m] per M:", dict(zip(n_particles.tolist(), np.round(np.median(sweep[:, :, 0], 1), 3).tolist())))
 
 # %% [markdown]
 # **Questions.**
