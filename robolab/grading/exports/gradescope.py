@@ -80,8 +80,7 @@ fi
 "$PYTHON3" -m venv "$VENV"
 # robolab (editable, so that it finds source/data and the hidden tests next to it) and
 # pytest, which runs the hidden tests, and nbformat (the instructor extra's, without copydetect).
-"$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -e "$SOURCE" \\
-    "pytest>=8.0" "nbformat>=5.9"
+"$VENV/bin/python" -m pip install --quiet --disable-pip-version-check -e "$SOURCE" "pytest>=8.0" "nbformat>=5.9"
 # The answers: root only. Everything the worker needs: readable by every uid.
 if [ "$(id -u)" = 0 ]; then chown -R 0:0 "$SOURCE/solutions" "$SOURCE/tests"; fi
 chmod -R go-rwx "$SOURCE/solutions" "$SOURCE/tests"
