@@ -84,14 +84,7 @@ def run_fastslam_freiburg(
         state = fastslam_step(state, [0.0, r1], None, q_turn, Qt, rng, 1.0)
         obs = data.indexed_observations(i)
         state = fastslam_step(state, [t, r2], obs, q_drive, Qt, rng, 1.0, resample)
-        if len(obs):
-            ids = obs[:, 2].astype(np.intp)
-            # Equal weights after the step mean it resampled, unless every landmark it saw
-            # was new: first sightings weigh all particles alike, so with an ESS threshold
-            # nothing was resampled (step 0 is such a step).
-            informative = resample is True or bool(seen[ids].any())
-            resamples += informative and bool(np.all(state["weights"] == state["weights"][0]))
-            seen[ids] = True
+        resamples += _resampled(state, obs, seen, resample)
         path.append(_mean_pose(state))
     return _scored(state, seen, data.landmarks, path, resamples)
 
@@ -148,16 +141,27 @@ def run_fastslam_mrclam(
     for s in range(1, last):
         obs = run.observations(s)
         state = fastslam_step(state, run.commands[s - 1], obs, Q, Qt, rng, run.dt, resample)
-        if len(obs):
-            ids = obs[:, 2].astype(np.intp)
-            informative = resample is True or bool(seen[ids].any())
-            resamples += informative and bool(np.all(state["weights"] == state["weights"][0]))
-            seen[ids] = True
+        resamples += _resampled(state, obs, seen, resample)
         path.append(_mean_pose(state))
     result = _scored(state, seen, run.landmarks, path, resamples)
     truth = run.truth[:last]
     result["path_error"] = np.hypot(*(result["path"][:, :2] - truth[:, :2]).T)
     return result
+
+
+def _resampled(state, obs, seen, resample) -> bool:
+    """Whether the step that saw ``obs`` resampled; marks the landmarks it saw in ``seen``.
+
+    Equal weights after the step mean it resampled, unless every landmark it saw was new:
+    first sightings weigh all particles alike, so under an ESS threshold nothing was
+    resampled (step 0 is such a step).
+    """
+    if obs is None or not len(obs):
+        return False
+    ids = np.asarray(obs)[:, 2].astype(np.intp)
+    informative = resample is True or bool(seen[ids].any())
+    seen[ids] = True
+    return informative and bool(np.all(state["weights"] == state["weights"][0]))
 
 
 def _scored(state, seen, true_landmarks, path, resamples) -> dict:
