@@ -12,9 +12,7 @@ import importlib
 import importlib.util
 import inspect
 import os
-import signal
 import sys
-import threading
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -100,13 +98,7 @@ def grade(
     (a user error, unknown lab, pytest missing, hidden tests that do not run);
     130 when interrupted (what finished is saved; the same command resumes).
     """
-    from robolab.grading.labs import project_root
-    from robolab.grading.running.runner import (
-        DEFAULT_TIMEOUT,
-        BatchInterrupted,
-        grade_all,
-        start_zygotes,
-    )
+    from robolab.grading.running.runner import DEFAULT_TIMEOUT
 
     timeout = DEFAULT_TIMEOUT if timeout is None else timeout
     if importlib.util.find_spec("pytest") is None:
@@ -122,6 +114,24 @@ def grade(
     missing = [p for p in submissions if not os.path.lexists(p)]
     if missing:
         return _error(f"no such notebook: {_shown(missing[0])}")
+    from robolab.grading.running import stopping
+
+    course = (roster, overrides, exports, assignment, due, late_penalty, late_cap, submitted_times)
+
+    # From here SIGINT and SIGTERM only ask the batch to stop (it looks between waits);
+    # the grading ends with exit 130 and a valid partial gradebook, within a few seconds.
+    with stopping.on_signals():
+        return _grade(submissions, lab, out, jobs, timeout, progress, shard, course)
+
+
+def _grade(submissions, lab, out, jobs, timeout, progress, shard, course_options) -> int:
+    """:func:`grade` once its arguments are checked, under the stop handlers."""
+    from robolab.grading.labs import project_root
+    from robolab.grading.running.runner import BatchInterrupted, grade_all, start_zygotes
+
+    roster, overrides, exports, assignment, due, late_penalty, late_cap, submitted_times = (
+        course_options
+    )
     root = project_root()
     start_zygotes(root)  # first: their imports run while the batch is read and planned
     from robolab.grading.course.batch import BatchState, prepare_out
@@ -158,7 +168,6 @@ def grade(
         state.record(todo[index], result)
         course.publish(result)
 
-    previous_term = _on_sigterm_interrupt()
     try:
         grade_all(
             [item.path for item in todo],
@@ -180,8 +189,6 @@ def grade(
             file=sys.stderr,
         )
         return 130
-    finally:
-        _restore_sigterm(previous_term)
     written = course.publish(final=True)
     names = {item.name for item in planned}
     this_run = [r for r in state.results() if r.name in names]
@@ -304,23 +311,6 @@ def _shown(path) -> str:
     from robolab.grading.course.batch import display_path
 
     return display_path(path)
-
-
-def _on_sigterm_interrupt():
-    """Make SIGTERM stop a batch as Ctrl-C does (main thread only); return the old handler."""
-    if threading.current_thread() is not threading.main_thread():
-        return None
-
-    def interrupt(signum, frame):
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)  # one stops the batch; stopping is bounded
-        raise KeyboardInterrupt
-
-    return signal.signal(signal.SIGTERM, interrupt)
-
-
-def _restore_sigterm(previous) -> None:
-    if previous is not None:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def check(notebook: Path) -> int:

@@ -229,6 +229,7 @@ class _Server:
                 raise RuntimeError(f"the zygote has {_threads()} threads; it only forks with one")
             sys.stdout.flush()
             sys.stderr.flush()
+            detached_r, detached_w = os.pipe()
             pid = os.fork()
         except Exception as exc:  # noqa: BLE001 - reported to the grader, which starts it cold
             _say(conn, {"error": f"{type(exc).__name__}: {exc}"})
@@ -239,11 +240,15 @@ class _Server:
         if pid == 0:  # pragma: no cover - the child; covered by the worker tests
             code = 70
             try:
+                os.close(detached_r)
                 self._detach()
+                os.close(detached_w)  # the grader may signal its process group from now on
                 if self.role == "worker":
                     code = self._become_worker(request, pipes)
                 else:
                     code = self._become_grader(request, pipes[0])
+            except KeyboardInterrupt:  # stopped by its grader (SIGINT) while starting
+                code = 130
             except BaseException:  # noqa: BLE001 - the grader reports the exit status
                 import traceback
 
@@ -252,6 +257,13 @@ class _Server:
                 os._exit(code)
         for fd in pipes:
             os.close(fd)
+        # The pid is told once the child leads its own process group (or has died): the
+        # grader stops a child by signalling that group, which must exist by then.
+        os.close(detached_w)
+        try:
+            os.read(detached_r, 1)
+        finally:
+            os.close(detached_r)
         if not request.get("probe"):  # the protection probe is not a submission of a batch
             self.served += 1
         self.conns[pid] = conn
@@ -292,6 +304,9 @@ class _Server:
         """
         keep = {int(fd) for fd in request.get("keep", ())}
         _redirect(log_fd, keep=keep)
+        # Ctrl-C semantics whatever the zygote inherited (a grader started with SIGINT
+        # ignored): the grader stops a run with SIGINT so that its fixtures close the worker.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         os.chdir(request["cwd"])
         os.environ.clear()
         os.environ.update(request["env"])
@@ -388,6 +403,8 @@ def main(argv: list[str] | None = None) -> int:
     if ready is not None:  # the grader may no longer just kill it: it may fork from now on
         try:
             os.write(ready, b"r")
+        except BrokenPipeError:  # the grader has gone (or stopped) before it was ready
+            return 0
         finally:
             os.close(ready)
     code = _Server(control, role).run()

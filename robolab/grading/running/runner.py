@@ -10,20 +10,21 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import subprocess
 import sys
 import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor, as_completed
+from concurrent.futures import FIRST_COMPLETED, Future, wait
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robolab.grading.isolation import warm
 from robolab.grading.labs import LabError, find_lab, lab_of_notebook, project_root
+from robolab.grading.running import stopping
+from robolab.grading.running.stopping import REAP, TICK, stop_run, stop_running
 
 if TYPE_CHECKING:
     from tqdm import tqdm
@@ -43,8 +44,6 @@ __all__ = [
 #: the time its pytest run and workers waited for a CPU (a backstop: a submission's own
 #: time is bounded by its budgets, see docs/grading.md).
 DEFAULT_TIMEOUT = 600.0
-#: Seconds between asking pytest to stop (SIGINT: fixtures close the worker) and killing it.
-_GRACE = 5.0
 #: pytest exit codes that mean the hidden tests ran (0: all passed, 1: some failed).
 _RAN = (0, 1)
 
@@ -141,47 +140,6 @@ class BatchInterrupted(KeyboardInterrupt):
         self.done, self.total = done, total
 
 
-#: pytest runs under way (for stop_running on Ctrl-C / SIGTERM).
-_LIVE: set[subprocess.Popen] = set()
-_LIVE_LOCK = threading.Lock()
-#: Set by stop_running: no new pytest run starts until the next grade_all.
-_STOPPING = threading.Event()
-
-
-def _stop(proc: subprocess.Popen) -> None:
-    """SIGINT the run's process group (fixtures close the worker), then SIGKILL it."""
-    for sig, wait in ((signal.SIGINT, _GRACE), (signal.SIGKILL, None)):
-        try:
-            os.killpg(proc.pid, sig)
-            proc.wait(timeout=wait)
-            return
-        except ProcessLookupError:
-            return
-        except subprocess.TimeoutExpired:
-            continue
-
-
-def stop_running() -> int:
-    """Stop every pytest run this process started that is still running; return how many.
-
-    Each run's own thread (:func:`_run`) sees the request within :data:`_TICK` and stops
-    its run; this waits until they all have.
-    """
-    with _LIVE_LOCK:
-        _STOPPING.set()
-        running = list(_LIVE)
-    for proc in running:
-        try:
-            proc.wait()
-        except Exception:  # noqa: BLE001 - gone already
-            pass
-    return len(running)
-
-
-#: Seconds between a pytest run's thread looking for a request to stop.
-_TICK = 0.2
-
-
 def _pytest_command(
     python: str, root: Path, tests: Path, notebook: Path, report: Path
 ) -> list[str]:
@@ -247,31 +205,32 @@ def _run(cmd: list[str], cwd: Path, log: Path, timeout: float) -> tuple[int | No
     pids = log.with_name("workers.txt")
     env = dict(_pytest_env(workers), **{WORKER_PIDS_VARIABLE: str(pids)})
     start = time.monotonic()
-    with log.open("wb") as out, _LIVE_LOCK:
-        if _STOPPING.is_set():
-            return None, 0.0
+    if stopping.runs_stopping():
+        return None, 0.0
+    # Not under a lock: starting a run may wait for the zygote, and stop_running must
+    # not. A run that starts after a stop was asked for is stopped by the loop below.
+    with log.open("wb") as out:
         proc = _launch(cmd, cwd, env, out.fileno(), workers)
-        _LIVE.add(proc)
+    stopping.remember_run(proc)
     code: int | None = None
     clock = AwakeClock(proc.pid)
     try:
-        while code is None and not _STOPPING.is_set():
+        while code is None and not stopping.runs_stopping():
             for pid in _pids_in(pids):
                 clock.watch(pid)
             left = timeout - clock.elapsed()
             if left <= 0:
                 break
             try:
-                code = proc.wait(timeout=min(_TICK, left))
+                code = proc.wait(timeout=min(TICK, left))
             except subprocess.TimeoutExpired:
                 pass
         if code is None:
             # Timed out or asked to stop: SIGINT first so pytest's finalizers close the
             # student's worker, then make sure.
-            _stop(proc)
+            stop_run(proc)
     finally:
-        with _LIVE_LOCK:
-            _LIVE.discard(proc)
+        stopping.forget_run(proc)
     return code, time.monotonic() - start
 
 
@@ -430,16 +389,21 @@ def grade_all(
     Raises
     ------
     BatchInterrupted
-        On Ctrl-C (or a KeyboardInterrupt raised by a SIGTERM handler): every pytest run
-        under way is stopped first; ``on_result`` has seen every result that finished.
+        When a stop is requested (SIGINT or SIGTERM under
+        :func:`~robolab.grading.running.stopping.on_signals`, looked at every
+        :data:`~robolab.grading.running.stopping.TICK` seconds), or on a KeyboardInterrupt
+        where no such handler is installed: every pytest run under way is stopped first
+        (bounded); ``on_result`` has seen every result that finished and was published.
     """
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     if not timeout > 0:
         raise ValueError(f"timeout must be a positive number of seconds, got {timeout}")
     root = root or project_root()
-    _STOPPING.clear()
     paths = [Path(p) for p in paths]
+    if stopping.requested():  # asked while the batch was being read: start nothing
+        raise BatchInterrupted(0, len(paths))
+    stopping.allow_runs()
     if paths:
         start_zygotes(root)
     from tqdm import tqdm  # here: importing it costs robolab grade 25 ms before its zygotes start
@@ -455,7 +419,6 @@ def grade_all(
     labs = list(labs) if labs is not None else [lab] * len(paths)
     names = list(names) if names is not None else [p.stem for p in paths]
     results: list[SubmissionResult | None] = [None] * len(paths)
-    pool = ThreadPoolExecutor(max_workers=jobs)
     done = 0
     waiting: list[int] = []  # finished before the probe: published once it is known
 
@@ -467,39 +430,91 @@ def grade_all(
             on_result(index, results[index])
         bar.update(1)
 
+    tasks = [
+        lambda p=p, la=la, n=n: grade_submission(p, lab=la, name=n, root=root, timeout=timeout)
+        for p, la, n in zip(paths, labs, names, strict=True)
+    ]
+    futures, threads = _in_daemon_threads(tasks, jobs)
+    index_of = {future: i for i, future in enumerate(futures)}
+    pending: set[Future] = {probe, *futures}
     try:
         with tqdm(
             total=len(paths), unit="submission", disable=not progress, file=sys.stderr
         ) as bar:
-            futures = {
-                pool.submit(grade_submission, p, lab=la, name=n, root=root, timeout=timeout): i
-                for i, (p, la, n) in enumerate(zip(paths, labs, names, strict=True))
-            }
-            for future in as_completed([probe, *futures]):
-                if future is probe:
-                    protection = probe.result()
-                    bar.clear()
-                    protection.announce()
-                    bar.refresh()
-                    for index in waiting:
+            # Short waits, and a look at the stop request between them: a signal never
+            # raises in here (see robolab.grading.running.stopping).
+            while pending and not stopping.requested():
+                finished, pending = wait(pending, timeout=TICK, return_when=FIRST_COMPLETED)
+                for future in sorted(finished, key=lambda f: index_of.get(f, -1)):
+                    if future is probe:
+                        protection = probe.result()
+                        bar.clear()
+                        protection.announce()
+                        bar.refresh()
+                        for index in waiting:
+                            publish(index, bar)
+                        waiting.clear()
+                        continue
+                    index = index_of[future]
+                    results[index] = future.result()
+                    if protection is None:
+                        waiting.append(index)
+                    else:
                         publish(index, bar)
-                    waiting.clear()
-                    continue
-                index = futures[future]
-                results[index] = future.result()
-                if protection is None:
-                    waiting.append(index)
-                else:
-                    publish(index, bar)
-    except KeyboardInterrupt:
-        for future in futures if "futures" in locals() else ():
-            future.cancel()
-        stop_running()
-        pool.shutdown(wait=True, cancel_futures=True)
+    except KeyboardInterrupt:  # no stop handler installed (grade_all called as a library)
+        pending = pending or {probe}
+    except BaseException:
+        _halt(threads)
+        raise
+    if pending - {probe} or (pending and stopping.requested()):
         # The probe is not waited for (a daemon thread): its worker dies with the zygote.
+        _halt(threads)
         raise BatchInterrupted(done, len(paths)) from None
-    pool.shutdown(wait=True)
     return [r for r in results if r is not None]
+
+
+def _in_daemon_threads(
+    tasks: Sequence[Callable[[], SubmissionResult]], jobs: int
+) -> tuple[list[Future], list[threading.Thread]]:
+    """Run ``tasks`` in ``jobs`` daemon threads, in order; their futures and the threads.
+
+    Daemon threads (not a :class:`~concurrent.futures.ThreadPoolExecutor`, whose threads
+    the interpreter joins at exit): a stopped batch waits for them a bounded time only
+    (:func:`_halt`). Once a stop is asked for, no thread takes another task.
+    """
+    futures = [Future() for _ in tasks]
+    order = iter(range(len(tasks)))
+    lock = threading.Lock()  # taken by these threads only, never by the main thread
+
+    def work() -> None:
+        while not stopping.runs_stopping():
+            with lock:
+                index = next(order, None)
+            if index is None:
+                return
+            future = futures[index]
+            if not future.set_running_or_notify_cancel():
+                continue
+            try:
+                future.set_result(tasks[index]())
+            except BaseException as exc:  # noqa: BLE001 - handed to the main thread
+                future.set_exception(exc)
+
+    threads = [
+        threading.Thread(target=work, name=f"robolab-grade-{k}", daemon=True)
+        for k in range(min(jobs, len(tasks)))
+    ]
+    for thread in threads:
+        thread.start()
+    return futures, threads
+
+
+def _halt(threads: Sequence[threading.Thread]) -> None:
+    """Stop the batch: no new run, every running one stopped, the threads given a bounded wait."""
+    stop_running()
+    deadline = time.monotonic() + REAP
+    for thread in threads:
+        thread.join(max(0.0, deadline - time.monotonic()))
 
 
 def _in_daemon_thread(function: Callable[[], Any], name: str) -> Future:
