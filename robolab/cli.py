@@ -279,6 +279,17 @@ def _dispatch(args) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     if (sys.argv[1:] if argv is None else list(argv))[:1] == ["grade"] and instructor_copy():
+        from robolab.grading.running import stopping
+
+        # SIGINT and SIGTERM only ask a batch to stop, from its very start (the zygotes
+        # start here); `robolab grade` looks at the request where stopping is safe.
+        with stopping.on_signals():
+            return _main(argv)
+    return _main(argv)
+
+
+def _main(argv: list[str] | None) -> int:
+    if (sys.argv[1:] if argv is None else list(argv))[:1] == ["grade"] and instructor_copy():
         # Before anything else: the zygotes' imports (half a second) run while the
         # arguments are parsed and the batch is read. A command that ends before they
         # are ready (a usage error, --help) kills them at exit instead of waiting.

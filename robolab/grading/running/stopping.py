@@ -55,6 +55,8 @@ TICK = 0.2
 
 #: Signals received since :func:`on_signals` started listening (only the handler writes it).
 _seen = 0
+#: How many :func:`on_signals` blocks are open (the outermost one listens).
+_depth = 0
 
 
 def _handler(signum: int, frame) -> None:
@@ -83,14 +85,17 @@ def on_signals() -> Iterator[None]:
 
     Only in the main thread (elsewhere signals cannot be handled; the block then changes
     nothing). A SIGINT ignored on entry stays ignored. The previous handlers come back
-    on exit.
+    on exit, unless a stop was requested: the command is then about to exit 130, and a
+    signal more (while its zygotes are closed) must neither kill it nor raise a
+    KeyboardInterrupt in an ``atexit`` callback.
     """
-    global _seen
-    if threading.current_thread() is not threading.main_thread():
-        yield
+    global _seen, _depth
+    if threading.current_thread() is not threading.main_thread() or _depth:
+        yield  # not the main thread, or listening already (a request then is kept)
         return
     _seen = 0
     previous = {}
+    _depth += 1
     try:
         for sig in (signal.SIGTERM, signal.SIGINT):
             if sig == signal.SIGINT and signal.getsignal(sig) == signal.SIG_IGN:
@@ -98,8 +103,10 @@ def on_signals() -> Iterator[None]:
             previous[sig] = signal.signal(sig, _handler)
         yield
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        _depth -= 1
+        if not requested():
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
 
 
 # --- the pytest runs of this process, and stopping them ---------------------------------
