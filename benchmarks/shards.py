@@ -29,6 +29,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from robolab.grading.course.report import without_measured
+
 REPO = Path(__file__).resolve().parents[1]
 ROBOLAB = [sys.executable, "-m", "robolab.cli"]
 
@@ -57,7 +59,7 @@ def _batch(folder: Path, labs: list[str], copies: int) -> dict[str, list[str]]:
 
 def _rows(folder: Path) -> list[dict]:
     rows = json.loads((folder / "gradebook.json").read_text())
-    return [{k: v for k, v in r.items() if k not in ("seconds", "cpu_seconds")} for r in rows]
+    return without_measured(rows)
 
 
 def main() -> int:

@@ -30,6 +30,7 @@ from robolab.grading.course.spreadsheet import csv_text
 from robolab.grading.running.runner import SubmissionResult, TestOutcome
 
 __all__ = [
+    "MEASURED_COLUMNS",
     "Context",
     "code_span",
     "fenced",
@@ -38,8 +39,13 @@ __all__ = [
     "render_feedback",
     "summary_table",
     "write_feedback",
+    "without_measured",
     "write_gradebook",
 ]
+
+#: Gradebook columns that say how long grading took, not what a submission earned: two
+#: gradings of the same files (sharded or not, on another machine) differ in them only.
+MEASURED_COLUMNS = ("seconds", "cpu_seconds")
 
 
 @dataclass
@@ -117,6 +123,11 @@ def _row(r: SubmissionResult, context: Context) -> dict:
         "cpu_seconds": round(r.cpu_seconds, 2),
         "isolation": r.isolation,
     }
+
+
+def without_measured(rows: Sequence[dict]) -> list[dict]:
+    """Copies of gradebook ``rows`` without the :data:`MEASURED_COLUMNS`."""
+    return [{k: v for k, v in r.items() if k not in MEASURED_COLUMNS} for r in rows]
 
 
 def gradebook_rows(

@@ -334,9 +334,9 @@ class _Server:
             pass
         if self.role == "worker" and os.geteuid() == 0:
             from robolab.grading.isolation import sandbox
-            from robolab.grading.running.channel import _kill_uid
+            from robolab.grading.running.channel import kill_uid
 
-            _kill_uid(sandbox.worker_uid(pid))
+            kill_uid(sandbox.worker_uid(pid))
 
     def _reap(self) -> list[int]:
         reaped = []

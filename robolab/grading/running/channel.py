@@ -1,8 +1,8 @@
 """One worker process seen from the grader: start it, exchange messages, kill everything.
 
-:class:`_Worker` sends a request, reads the answer under the request's CPU and wall
+:class:`Worker` sends a request, reads the answer under the request's CPU and wall
 limits (answering the worker's depcalls on the way), charges decoding to the call and
-sweeps what the call started; :class:`_Output` holds what the student's code printed.
+sweeps what the call started; :class:`Output` holds what the student's code printed.
 """
 
 from __future__ import annotations
@@ -43,12 +43,14 @@ from robolab.grading.wire import codec
 if TYPE_CHECKING:
     pass
 
+__all__ = ["Output", "Worker", "decode_clock", "kill_uid"]
+
 
 #: The grader thread's CPU clock, which decoding a result is charged by.
 decode_clock = time.thread_time
 
 
-class _Output:
+class Output:
     """A bounded buffer for what student code prints, shared by successive workers.
 
     A thread per worker drains its pipe as output arrives; :meth:`text` also reads
@@ -113,10 +115,10 @@ class _Output:
 # --- one worker process ------------------------------------------------------------------------
 
 
-class _Worker:
+class Worker:
     """One running worker: start, exchange messages under deadlines, kill everything."""
 
-    def __init__(self, limits: Limits, output: _Output) -> None:
+    def __init__(self, limits: Limits, output: Output) -> None:
         self.limits = limits
         self.base = Path(tempfile.mkdtemp(prefix="robolab-worker-"))
         os.chmod(self.base, 0o711)  # a dropped uid must reach its work directory
@@ -439,7 +441,7 @@ def _kill_tree(process: subprocess.Popen, uid: int | None) -> None:
         pass
     if uid is not None:
         # Children that left the process group (setsid) still run as the worker's uid.
-        _kill_uid(uid)
+        kill_uid(uid)
     try:
         process.wait(timeout=10)
     except subprocess.TimeoutExpired:  # pragma: no cover - SIGKILL does not fail
@@ -473,7 +475,7 @@ def _matplotlib_font_caches() -> list[Path]:
     return found
 
 
-def _kill_uid(uid: int) -> None:
+def kill_uid(uid: int) -> None:
     """SIGKILL every process of ``uid`` (root only): kill(-1) sent as that uid."""
     for _ in range(2):  # a second pass catches a child forked during the first
         pid = os.fork()

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 from robolab.grading.isolation import sandbox
 from robolab.grading.loading.kernel import load_budget
 from robolab.grading.loading.notebook import CellProblem, LoadedNotebook, load_notebook
-from robolab.grading.running.channel import _Output, _Worker
+from robolab.grading.running.channel import Output, Worker
 from robolab.grading.running.errors import (
     IsolationWarning,
     MissingFunction,
@@ -100,8 +100,8 @@ class SubmissionProxy:
         self.sandbox: sandbox.SandboxReport | None = None
         self._notebook = notebook
         self._limits = limits
-        self._output = _Output(limits.max_output_bytes)
-        self._worker: _Worker | None = None
+        self._output = Output(limits.max_output_bytes)
+        self._worker: Worker | None = None
         self._broken: StudentCodeError | None = None
         self._call_id = 0
         self._closed = False
@@ -147,7 +147,7 @@ class SubmissionProxy:
             self._limits.budget_seconds - self.spent_seconds,
         )
 
-    def _charge(self, worker: _Worker) -> float:
+    def _charge(self, worker: Worker) -> float:
         """Add the request that just ended to the submission's totals; return its CPU time."""
         self.spent_cpu_seconds += worker.request_cpu
         self.spent_seconds += worker.request_awake
@@ -205,9 +205,9 @@ class SubmissionProxy:
 
     # -- internals --
 
-    def _start(self) -> _Worker:
+    def _start(self) -> Worker:
         """A fresh worker with the notebook's definitions loaded."""
-        worker = _Worker(self._limits, self._output)
+        worker = Worker(self._limits, self._output)
         try:
             message = worker.receive(None)
             if message[0] != "ready":
@@ -287,7 +287,7 @@ class SubmissionProxy:
             )
         return worker
 
-    def _expect(self, worker: _Worker, message: Any, kind: str, call_id: int | None = None) -> Any:
+    def _expect(self, worker: Worker, message: Any, kind: str, call_id: int | None = None) -> Any:
         ok = isinstance(message, tuple) and message and message[0] == kind
         if ok and call_id is not None:
             ok = len(message) in ((3, 4) if kind in ("ok", "error") else (3,))
@@ -428,7 +428,7 @@ class SubmissionProxy:
 
     def _answer(
         self,
-        worker: _Worker,
+        worker: Worker,
         name: str,
         call_id: int,
         message: Any,

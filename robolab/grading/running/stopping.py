@@ -86,8 +86,9 @@ def on_signals() -> Iterator[None]:
     Only in the main thread (elsewhere signals cannot be handled; the block then changes
     nothing). A SIGINT ignored on entry stays ignored. The previous handlers come back
     on exit, unless a stop was requested: the command is then about to exit 130, and a
-    signal more (while its zygotes are closed) must neither kill it nor raise a
-    KeyboardInterrupt in an ``atexit`` callback.
+    signal more (while its zygotes are closed, or the interpreter, which puts back the
+    default handlers, tears down) must neither kill it nor raise a KeyboardInterrupt in
+    an ``atexit`` callback: both signals are then ignored.
     """
     global _seen, _depth
     if threading.current_thread() is not threading.main_thread() or _depth:
@@ -104,9 +105,8 @@ def on_signals() -> Iterator[None]:
         yield
     finally:
         _depth -= 1
-        if not requested():
-            for sig, handler in previous.items():
-                signal.signal(sig, handler)
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_IGN if requested() else handler)
 
 
 # --- the pytest runs of this process, and stopping them ---------------------------------

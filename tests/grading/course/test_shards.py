@@ -21,6 +21,7 @@ import pytest
 
 from robolab.cli import main
 from robolab.grading.course.batch import relative_paths
+from robolab.grading.course.report import without_measured
 from robolab.grading.course.shards import EXPECTED_SECONDS, Shard, deal, parse_shard
 from tests.grading.running.test_runner import REPO
 
@@ -149,11 +150,6 @@ def _lay_out(folder: Path) -> Path:
     return folder
 
 
-def _strip(rows: list[dict]) -> list[dict]:
-    measured = ("seconds", "cpu_seconds")  # how long it took, not what it earned
-    return [{k: v for k, v in r.items() if k not in measured} for r in rows]
-
-
 @pytest.fixture(scope="module")
 def graded(tmp_path_factory):
     """One unsharded run, and 3 shards graded by the recipe's script on 3 "nodes"."""
@@ -225,7 +221,7 @@ def test_merged_shards_equal_one_unsharded_run(graded, capsys):
     one, merged = whole / "grades", whole / "merged"
     a = json.loads((one / "gradebook.json").read_text())
     b = json.loads((merged / "gradebook.json").read_text())
-    assert _strip(a) == _strip(b)
+    assert without_measured(a) == without_measured(b)
     # the course was applied, once: a late row, an override, a flag
     late = {r["submission"]: r for r in b}["partial_bayes"]
     assert late["days_late"] == 2 and late["final"] == pytest.approx(late["total"] * 0.8)
