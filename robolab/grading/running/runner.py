@@ -255,6 +255,8 @@ def _launch(cmd: list[str], cwd: Path, env: dict, out: int, workers: warm.Zygote
         try:
             return grader.spawn(request, (out,))
         except warm.ZygoteError as exc:
+            if stopping.runs_stopping():  # its zygote is closing with the batch: start nothing
+                raise
             print(f"robolab grade: starting pytest cold: {exc}", file=sys.stderr)
     return subprocess.Popen(
         cmd,
