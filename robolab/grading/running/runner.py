@@ -439,6 +439,7 @@ def grade_all(
     futures, threads = _in_daemon_threads(tasks, jobs)
     index_of = {future: i for i, future in enumerate(futures)}
     pending: set[Future] = {probe, *futures}
+    interrupted = False
     try:
         with tqdm(
             total=len(paths), unit="submission", disable=not progress, file=sys.stderr
@@ -464,11 +465,11 @@ def grade_all(
                     else:
                         publish(index, bar)
     except KeyboardInterrupt:  # no stop handler installed (grade_all called as a library)
-        pending = pending or {probe}
+        interrupted = True
     except BaseException:
         _halt(threads)
         raise
-    if pending - {probe} or (pending and stopping.requested()):
+    if interrupted or pending - {probe} or (pending and stopping.requested()):
         # The probe is not waited for (a daemon thread): its worker dies with the zygote.
         _halt(threads)
         raise BatchInterrupted(done, len(paths)) from None
