@@ -354,10 +354,7 @@ class Worker:
         if self.process.poll() is None and not force:
             return
         if self.process.poll() is None:
-            try:  # end of file usually means it is exiting: give it a moment to be reaped
-                self.process.wait(timeout=1)
-            except subprocess.TimeoutExpired:
-                pass
+            self._wait_reaped()
         if self.process.poll() is None:
             # The response pipe closed but the process lives: it broke the protocol.
             self.kill()
@@ -376,6 +373,19 @@ class Worker:
             f"the worker process exited with status {code} (os._exit, sys.exit or a fatal error)",
             kind="crash",
         )
+
+    def _wait_reaped(self, awake: float = 1.0, wall: float = 60.0) -> None:
+        """End of file usually means the worker is exiting: give it ``awake`` seconds of
+        its awake clock to be reaped (on a busy machine its exit waits for a CPU; a wall
+        timeout alone would make the feedback's wording depend on the load)."""
+        clock = processes.AwakeClock(self.process.pid)
+        deadline = time.monotonic() + wall
+        while clock.elapsed() < awake and time.monotonic() < deadline:
+            try:
+                self.process.wait(timeout=0.05)
+                return
+            except subprocess.TimeoutExpired:
+                continue
 
     def kill(self) -> None:
         """Kill the worker and everything it started; idempotent."""
