@@ -1,8 +1,8 @@
 """How fast the autograder grades: one submission, and a batch with -j 2; cold vs warm workers.
 
 Targets: one submission of the bayes lab <= 1 s (issue 19, item 4); 50 submissions
-with -j 2 <= 7 s on a 2-core machine (issue 29; was 45 s in issue 19), scaled to ``--batch``. Every case runs twice in the same session,
-interleaved, best of the repeats:
+with -j 2 <= 7 s on a 2-core machine (issue 29; was 45 s in issue 19), scaled to
+``--batch``. Every case runs twice in the same session, interleaved, best of the repeats:
 
 - cold: ``ROBOLAB_WARM_WORKERS=0``, every worker a fresh ``python -m
   robolab.grading.isolation.worker`` that imports numpy and the notebook's libraries itself
@@ -21,8 +21,8 @@ machine, read the ratios, not the seconds.
 A missed target is shown (``NO`` in the last column) but does not fail the run: on a
 shared machine the seconds depend on the load. The exit status is 1 only when a graded
 run had errors (the grader is broken). Under ``ROBOLAB_BENCH_TINY=1``
-(tests/test_benchmarks.py) the defaults shrink to a batch of 2 and one repeat: every case,
-cold and warm, still runs.
+(tests/test_benchmarks.py) the defaults shrink to the demo lab, a batch of 2 and one
+repeat: every case, cold and warm, still runs.
 """
 
 from __future__ import annotations
@@ -120,7 +120,7 @@ def _load() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--lab", default="bayes")
+    p.add_argument("--lab", default="demo" if TINY else "bayes")
     p.add_argument("--batch", type=int, default=2 if TINY else 50)
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument(

@@ -15,7 +15,7 @@ with ``--price`` (default 0.05 USD, about an on-demand cloud vCPU), its price.
     python benchmarks/shards.py [--labs bayes beam_model mcl] [--copies 2] [--shards 2]
         [--price 0.05]
 
-Under ``ROBOLAB_BENCH_TINY=1`` (tests/test_benchmarks.py) the defaults shrink to the Bayes
+Under ``ROBOLAB_BENCH_TINY=1`` (tests/test_benchmarks.py) the defaults shrink to the demo
 lab, one copy of each example: every step (per-lab run, unsharded run, shards, merge,
 comparison) still runs.
 """
@@ -68,7 +68,7 @@ def _rows(folder: Path) -> list[dict]:
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument(
-        "--labs", nargs="+", default=["bayes"] if TINY else ["bayes", "beam_model", "mcl"]
+        "--labs", nargs="+", default=["demo"] if TINY else ["bayes", "beam_model", "mcl"]
     )
     p.add_argument("--copies", type=int, default=1 if TINY else 2)
     p.add_argument("--shards", type=int, default=2)

@@ -53,9 +53,17 @@ __all__ = ["GRADER_PRELOAD", "GRADER_PRELOAD_IDLE", "PRELOAD", "PRELOAD_IDLE", "
 #: Modules the zygote imports before it forks the first worker: what every lab's notebook uses.
 PRELOAD = (
     "numpy",
+    "numpy.random",  # imported lazily by numpy 2; every child reseeds it
     "matplotlib",
     "matplotlib.pyplot",
     "fractions",
+    # the worker's own modules (what a forked child imports before it serves a call)
+    "robolab.grading.isolation.worker",
+    "robolab.grading.isolation.sandbox",
+    "robolab.grading.loading.kernel",
+    "robolab.grading.loading.delegation",
+    "robolab.grading.wire.observe",
+    "robolab.grading.wire.depcall",
     "robolab.grading.wire.codec",
     "robolab.geometry",
     "robolab.validation",
@@ -84,12 +92,28 @@ IDLE_AFTER = 2
 #: What the grader zygote (the trusted side: pytest, the hidden tests) imports before forking.
 GRADER_PRELOAD = (
     "numpy",
+    "numpy.random",  # numpy 2 imports these two lazily; every hidden test uses them
+    "numpy.testing",
     "pytest",
     "_pytest.python",
     "_pytest.fixtures",
     "_pytest.assertion.rewrite",
+    # pytest's default plugins (imported by every run's configuration) and what they import
+    *(
+        f"_pytest.{name}"
+        for name in (
+            "junitxml pastebin helpconfig faulthandler skipping unittest warnings setuponly "
+            "setupplan tracemalloc threadexception unraisableexception _argcomplete"
+        ).split()
+    ),
+    "pdb",
+    "tomllib",
+    "xml.etree.ElementTree",
+    "concurrent.futures",
     "fractions",
+    "robolab.validation",
     "robolab.grading.running.proxy",
+    "robolab.grading.running.pytest_plugin",
 )
 #: ... and while it is idle: what the hidden tests and reference solutions import.
 GRADER_PRELOAD_IDLE = (
