@@ -42,9 +42,11 @@ from __future__ import annotations
 import json
 import os
 import select
+import shutil
 import signal
 import socket
 import sys
+import tempfile
 import threading
 import time
 
@@ -170,6 +172,43 @@ def _import(name: str) -> None:
         pass  # an optional library that is not installed: the worker reports it if used
 
 
+def _keep_rewritten_tests(folder: str) -> None:  # pragma: no cover - in a forked pytest run
+    """Keep the hidden tests as pytest rewrote their asserts in ``folder``, for the next runs.
+
+    pytest caches a rewritten test module as a ``.pyc`` beside it, unless bytecode is not
+    written (``PYTHONDONTWRITEBYTECODE``, which a pytest run of the grader sets: nothing is
+    written into the course's folders). Then every run rewrites the lab's hidden tests
+    again: a tenth of a second of a small lab's grading. Here the cache is ``folder``
+    (private to the grader zygote, mode 0700, removed when it exits; workers fork from
+    the other zygote and never see it), and only the rewritten tests are written there:
+    the first run of a lab writes them, the next ones read them (pytest checks the
+    source's hash). With a pytest whose internals differ, runs rewrite as before.
+    """
+    try:
+        from _pytest.assertion import rewrite
+    except ImportError:
+        return
+    needed = ("get_cache_dir", "_rewrite_test", "_write_pyc", "try_makedirs", "PYC_TAIL")
+    if not all(hasattr(rewrite, name) for name in needed):
+        return
+    from pathlib import Path
+
+    def cache_dir(path: Path) -> Path:
+        return Path(folder, *Path(path).parts[1:-1])
+
+    rewrite_test = rewrite._rewrite_test
+
+    def rewrite_and_keep(path: Path, config):
+        source, code = rewrite_test(path, config)
+        directory = cache_dir(path)
+        if rewrite.try_makedirs(directory):
+            pyc = directory / (Path(path).name[:-3] + rewrite.PYC_TAIL)
+            rewrite._write_pyc(config.stash[rewrite.assertstate_key], code, source, pyc)
+        return source, code
+
+    rewrite.get_cache_dir, rewrite._rewrite_test = cache_dir, rewrite_and_keep
+
+
 def _threads() -> int:
     try:
         return len(os.listdir("/proc/self/task"))
@@ -183,6 +222,9 @@ class _Server:
     def __init__(self, control: socket.socket, role: str) -> None:
         self.control = control
         self.role = role
+        #: The grader zygote's folder of hidden tests as pytest rewrote their asserts (a
+        #: private temporary one, gone when it exits; see _keep_rewritten_tests).
+        self.pycache = tempfile.mkdtemp(prefix="robolab-grader-pyc-") if role == "grader" else None
         self.conns: dict[int, socket.socket] = {}  # worker pid -> its grader's connection
         self.served = 0
         self.wake_r, self.wake_w = os.pipe()
@@ -330,6 +372,9 @@ class _Server:
         sys.argv = ["pytest", *request["args"]]
         import pytest
 
+        if self.pycache is not None:
+            _keep_rewritten_tests(self.pycache)
+
         code = int(pytest.main(request["args"]))
         for stream in (sys.stdout, sys.stderr):
             stream.flush()
@@ -414,7 +459,12 @@ def main(argv: list[str] | None = None) -> int:
             os.write(ready, b"r")
         finally:
             os.close(ready)
-    code = _Server(control, role).run()
+    server = _Server(control, role)
+    try:
+        code = server.run()
+    finally:
+        if server.pycache is not None:
+            shutil.rmtree(server.pycache, ignore_errors=True)
     # Every child is reaped and nothing is kept: exit without tearing down numpy, matplotlib
     # and pytest module by module (a tenth of a second the grader would wait for).
     sys.stdout.flush()
