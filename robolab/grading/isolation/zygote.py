@@ -126,13 +126,18 @@ GRADER_PRELOAD_IDLE = (
     "robolab.maps",
     "robolab.raycast",
     # numba and the ray-casting kernels the hidden tests of the beam-model and MCL labs
-    # call (import and load from numba's cache: 1.5 s of every such pytest run otherwise)
+    # call (import and load from numba's cache: 1.5 s of every such pytest run otherwise);
+    # only once a run of such a lab was asked for (COMPILED_LABS)
     "robolab.grading.isolation.zygote:_warm_compiled",
     "robolab.bag",
     "robolab.world",
     "robolab.fiducials",
     "filterpy.kalman",
 )
+#: The idle step that loads numba's kernels, and the hidden-test modules whose pytest runs
+#: cast rays in the grader (the step waits until a run of one of them was asked for).
+WARM_COMPILED = "robolab.grading.isolation.zygote:_warm_compiled"
+COMPILED_LABS = ("test_beam_model.py", "test_mcl.py")
 #: Largest request (JSON) accepted by the zygote.
 MAX_REQUEST_BYTES = 1 << 20
 
@@ -247,6 +252,8 @@ class _Server:
         #: private temporary one, gone when it exits; see _keep_rewritten_tests).
         self.pycache = tempfile.mkdtemp(prefix="robolab-grader-pyc-") if role == "grader" else None
         self.conns: dict[int, socket.socket] = {}  # worker pid -> its grader's connection
+        self.wants_compiled = False  # a pytest run of a COMPILED_LABS lab was asked for
+        self.deferred: list[str] = []  # idle imports waiting for such a run
         self.served = 0
         self.wake_r, self.wake_w = os.pipe()
         os.set_blocking(self.wake_w, False)
@@ -267,9 +274,16 @@ class _Server:
             except InterruptedError:  # pragma: no cover - poll retries on EINTR since 3.5
                 continue
             if not events and warm_up:
-                _import(idle.pop(0))
+                name = idle.pop(0)
+                if name == WARM_COMPILED and not self.wants_compiled:
+                    self.deferred.append(name)  # a batch without those labs never pays it
+                    continue
+                _import(name)
                 _freeze()
                 continue
+            if self.wants_compiled and self.deferred:
+                idle += self.deferred
+                self.deferred.clear()
             for fd, _ in events:
                 if fd == self.wake_r:
                     while True:
@@ -312,6 +326,9 @@ class _Server:
         pipes = fds[1:]
         try:
             request = json.loads(data)
+            if self.role == "grader" and not self.wants_compiled:
+                args = request.get("args") or ()
+                self.wants_compiled = any(str(a).endswith(COMPILED_LABS) for a in args)
             if _threads() != 1:
                 raise RuntimeError(f"the zygote has {_threads()} threads; it only forks with one")
             sys.stdout.flush()
