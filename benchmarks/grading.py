@@ -1,8 +1,8 @@
 """How fast the autograder grades: one submission, and a batch with -j 2; cold vs warm workers.
 
-Targets (issue 19, item 4): one submission of the bayes lab <= 1 s; 50 submissions
-with -j 2 <= 45 s on a 2-core machine. Every case runs twice in the same session,
-interleaved, best of the repeats:
+Targets: one submission of the bayes lab <= 1 s (issue 19, item 4); 50 submissions
+with -j 2 <= 7 s on a 2-core machine (issue 29; was 45 s in issue 19), scaled to
+``--batch``. Every case runs twice in the same session, interleaved, best of the repeats:
 
 - cold: ``ROBOLAB_WARM_WORKERS=0``, every worker a fresh ``python -m
   robolab.grading.isolation.worker`` that imports numpy and the notebook's libraries itself
@@ -17,6 +17,12 @@ batch). The machine's load average is printed before and after: on a shared
 machine, read the ratios, not the seconds.
 
     python benchmarks/grading.py [--lab bayes] [--batch 50] [--jobs 2] [--repeats 3]
+
+A missed target is shown (``NO`` in the last column) but does not fail the run: on a
+shared machine the seconds depend on the load. The exit status is 1 only when a graded
+run had errors (the grader is broken). Under ``ROBOLAB_BENCH_TINY=1``
+(tests/test_benchmarks.py) the defaults shrink to the demo lab, a batch of 2 and one
+repeat: every case, cold and warm, still runs.
 """
 
 from __future__ import annotations
@@ -36,6 +42,7 @@ from robolab.grading.isolation import warm
 from robolab.grading.running.runner import grade_all, grade_submission
 
 REPO = Path(__file__).resolve().parents[1]
+TINY = os.environ.get("ROBOLAB_BENCH_TINY") == "1"
 MODES = ("cold", "warm")
 
 
@@ -113,10 +120,12 @@ def _load() -> str:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--lab", default="bayes")
-    p.add_argument("--batch", type=int, default=50)
+    p.add_argument("--lab", default="demo" if TINY else "bayes")
+    p.add_argument("--batch", type=int, default=2 if TINY else 50)
     p.add_argument("--jobs", type=int, default=2)
-    p.add_argument("--repeats", type=int, default=3, help="interleaved repeats of each case")
+    p.add_argument(
+        "--repeats", type=int, default=1 if TINY else 3, help="interleaved repeats of each case"
+    )
     args = p.parse_args(argv)
 
     print(f"before: {_load()}")
@@ -152,28 +161,30 @@ def main(argv: list[str] | None = None) -> int:
         _set_mode("warm")
     print(f"after:  {_load()}\n")
 
-    targets = {cases[0][0]: 1.0, cases[1][0]: 1.0, cases[2][0]: 45.0}
+    targets = {cases[0][0]: 1.0, cases[1][0]: 1.0, cases[2][0]: 7.0 * args.batch / 50}
     width = max(len(name) for name, _ in cases)
     print(
         f"{'case (' + args.lab + ')':<{width}}  {'cold s':>7}  {'warm s':>7}  {'speed-up':>8}  "
         f"{'CPU cold':>8}  {'CPU warm':>8}  {'target':>6}  ok"
     )
-    failed = False
+    missed = 0
     for name, _ in cases:
         cold, warm = best[name, "cold"], best[name, "warm"]
         cpu = [best_cpu.get((name, mode)) for mode in MODES]
         shown = [" " * 8 if c is None else f"{c:8.2f}" for c in cpu]
         ok = warm <= targets[name]
-        failed |= not ok
+        missed += not ok
         print(
             f"{name:<{width}}  {cold:7.2f}  {warm:7.2f}  {cold / warm:7.2f}x  "
-            f"{shown[0]}  {shown[1]}  {targets[name]:6.0f}  {'yes' if ok else 'NO'}"
+            f"{shown[0]}  {shown[1]}  {targets[name]:6.1f}  {'yes' if ok else 'NO'}"
         )
     print(
         f"\nseconds: wall clock, best of {args.repeats} interleaved repeats; CPU: every process "
         f"of the case (grader, pytest runs, zygotes, workers); {errors} graded runs had errors"
     )
-    return 1 if failed or errors else 0
+    if missed:
+        print(f"{missed} target(s) missed (read the load average above)")
+    return 1 if errors else 0
 
 
 if __name__ == "__main__":

@@ -5,6 +5,9 @@ nbclient (Jupyter's own executor) and reads the kernel's own CPU time
 (``resource.getrusage`` in a last cell): the budget is for the student's kernel, so
 start-up of the client and wall time lost to a busy machine do not count. Prints one
 row per lab with the slowest cells, and the machine's load.
+
+Under ``ROBOLAB_BENCH_TINY=1`` (tests/test_benchmarks.py) only lab 01 (Bayes, the quickest)
+is solved and run: the same path, one notebook.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+TINY = os.environ.get("ROBOLAB_BENCH_TINY") == "1"
 BUDGET = 20.0  # seconds of kernel CPU per solved notebook (issue: each lab <= 20 s)
 CPU_CELL = ("import resource as _r; _u = _r.getrusage(_r.RUSAGE_SELF); "
             "print('CPU', _u.ru_utime + _u.ru_stime)")
@@ -55,8 +59,12 @@ def main() -> int:
     os.environ.setdefault("MPLBACKEND", "Agg")
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "solved"
-        subprocess.run([sys.executable, "-m", "robolab.cli", "solve", str(ROOT / "notebooks"),
-                        "-o", str(out)], check=True, capture_output=True)
+        source = ROOT / "notebooks" / "01_bayes.ipynb" if TINY else ROOT / "notebooks"
+        if TINY:
+            out.mkdir()
+        target = out / source.name if TINY else out
+        subprocess.run([sys.executable, "-m", "robolab.cli", "solve", str(source),
+                        "-o", str(target)], check=True, capture_output=True)
         print(f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores; "
               f"budget {BUDGET:g} s of kernel CPU per lab")
         print(f"{'lab':<24}{'kernel CPU [s]':>16}{'of budget':>11}{'wall [s]':>10}  slowest cells")

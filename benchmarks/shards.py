@@ -14,6 +14,10 @@ with ``--price`` (default 0.05 USD, about an on-demand cloud vCPU), its price.
 
     python benchmarks/shards.py [--labs bayes beam_model mcl] [--copies 2] [--shards 2]
         [--price 0.05]
+
+Under ``ROBOLAB_BENCH_TINY=1`` (tests/test_benchmarks.py) the defaults shrink to the demo
+lab, one copy of each example: every step (per-lab run, unsharded run, shards, merge,
+comparison) still runs.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from robolab.grading.course.report import without_measured
 
 REPO = Path(__file__).resolve().parents[1]
 ROBOLAB = [sys.executable, "-m", "robolab.cli"]
+TINY = os.environ.get("ROBOLAB_BENCH_TINY") == "1"
 
 
 def _run(args: list[str], cwd: Path) -> tuple[float, float]:
@@ -64,8 +69,10 @@ def _rows(folder: Path) -> list[dict]:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--labs", nargs="+", default=["bayes", "beam_model", "mcl"])
-    p.add_argument("--copies", type=int, default=2)
+    p.add_argument(
+        "--labs", nargs="+", default=["demo"] if TINY else ["bayes", "beam_model", "mcl"]
+    )
+    p.add_argument("--copies", type=int, default=1 if TINY else 2)
     p.add_argument("--shards", type=int, default=2)
     p.add_argument("--price", type=float, default=0.05, help="USD per core-hour")
     args = p.parse_args()

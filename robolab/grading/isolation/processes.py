@@ -16,16 +16,33 @@ the leader, so nothing a call started outlives it. Scanning ``/proc`` costs
 milliseconds on a busy machine, so it is skipped when no process was created
 on the machine since the last scan (the last pid in ``/proc/loadavg`` has not
 moved): a call that forks nothing costs two small reads.
+
+The files read on every call (a worker's ``stat`` and ``schedstat``, a thread's
+``schedstat``, ``/proc/loadavg``) stay open and are re-read from offset 0
+(:func:`read_proc`): a path lookup and an open per read cost more than the read. A
+descriptor of ``/proc/<pid>`` names that process, not the number: once it has exited
+(and been reaped) the read fails with ``ESRCH`` and the path is opened again, which is
+what opening it every time would have found.
 """
 
 from __future__ import annotations
 
 import os
 import signal
+import threading
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
-__all__ = ["AwakeClock", "GroupClock", "Member", "group_members", "last_pid", "run_delay"]
+__all__ = [
+    "AwakeClock",
+    "GroupClock",
+    "Member",
+    "group_members",
+    "last_pid",
+    "read_proc",
+    "run_delay",
+]
 
 #: Environment variable naming a file where the proxy appends each worker's pid: the
 #: runner's timeout leaves out the time the workers of its pytest run waited for a CPU.
@@ -50,7 +67,58 @@ class Member:
         return self.own_seconds + self.children_seconds
 
 
+#: Most /proc files kept open by :func:`read_proc` (the least recently read is closed).
+_OPEN_MAX = 64
+_open: OrderedDict[str, int] = OrderedDict()
+_open_lock = threading.Lock()
+_open_pid = os.getpid()  # a forked child closes nothing of its parent's: it starts afresh
+
+
+def read_proc(path: str) -> bytes:
+    """The contents of a small ``/proc`` file, read through a descriptor kept open.
+
+    The first read of ``path`` opens it; later reads ``pread`` it from offset 0, which
+    makes the kernel generate it anew. A read that fails (the process or thread has
+    gone: ``ESRCH``) closes the descriptor and opens the path once more, so a number
+    reused by a new process is read as a fresh open would. Raises OSError when the
+    path cannot be opened or read.
+    """
+    global _open_pid
+    with _open_lock:
+        if _open_pid != os.getpid():  # forked: the descriptors are copies, forget them
+            _open.clear()
+            _open_pid = os.getpid()
+        fd = _open.get(path)
+        if fd is not None:
+            try:
+                data = os.pread(fd, 4096, 0)
+            except OSError:
+                del _open[path]
+                os.close(fd)
+            else:
+                _open.move_to_end(path)
+                return data
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+        try:
+            data = os.pread(fd, 4096, 0)
+        except OSError:
+            os.close(fd)
+            raise
+        _open[path] = fd
+        while len(_open) > _OPEN_MAX:
+            os.close(_open.popitem(last=False)[1])
+        return data
+
+
 def _stat(pid: int) -> list[bytes] | None:
+    try:
+        return read_proc(f"/proc/{pid}/stat").rsplit(b")", 1)[1].split()
+    except (OSError, IndexError):
+        return None
+
+
+def _stat_once(pid: int) -> list[bytes] | None:
+    """``_stat`` without keeping the file open (a scan of many processes)."""
     try:
         with open(f"/proc/{pid}/stat", "rb") as f:
             return f.read().rsplit(b")", 1)[1].split()
@@ -68,8 +136,7 @@ def _member(pid: int, fields: list[bytes]) -> Member:
 def last_pid() -> int:
     """The most recently allocated pid of this pid namespace (-1 when unknown)."""
     try:
-        with open("/proc/loadavg", "rb") as f:
-            return int(f.read().split()[-1])
+        return int(read_proc("/proc/loadavg").split()[-1])
     except (OSError, ValueError, IndexError):
         return -1
 
@@ -81,9 +148,10 @@ def run_delay(pid: int | str = "thread-self") -> float | None:
     The second field of ``/proc/<pid>/schedstat`` (nanoseconds on the run queue):
     the time a loaded machine, not the process, is responsible for.
     """
+    if pid == "thread-self":  # the calling thread's own file (a descriptor per thread)
+        pid = f"self/task/{threading.get_native_id()}"
     try:
-        with open(f"/proc/{pid}/schedstat", "rb") as f:
-            return int(f.read().split()[1]) / 1e9
+        return int(read_proc(f"/proc/{pid}/schedstat").split()[1]) / 1e9
     except (OSError, IndexError, ValueError):
         return None
 
@@ -155,7 +223,7 @@ def group_members(pgid: int, pids: range | None = None) -> list[Member]:
     )
     found = []
     for pid in candidates:
-        fields = _stat(pid)
+        fields = _stat_once(pid)
         if fields is not None and len(fields) > 19 and int(fields[2]) == pgid:
             found.append(_member(pid, fields))
     return found
@@ -289,6 +357,6 @@ def _wait_dead(pids: list[int], timeout: float = 2.0) -> None:
     """Wait (briefly) until killed processes are zombies or gone: SIGKILL is asynchronous."""
     deadline = time.monotonic() + timeout
     while pids and time.monotonic() < deadline:
-        pids = [p for p in pids if (f := _stat(p)) is not None and f[0] not in (b"Z", b"X")]
+        pids = [p for p in pids if (f := _stat_once(p)) is not None and f[0] not in (b"Z", b"X")]
         if pids:
             time.sleep(0.002)

@@ -324,8 +324,8 @@ class Worker:
     def cpu_seconds(self) -> float:
         """CPU time used by the worker process itself, read from the kernel (trusted)."""
         try:
-            with open(f"/proc/{self.process.pid}/stat", "rb") as f:
-                fields = f.read().rsplit(b")", 1)[1].split()
+            fields = processes.read_proc(f"/proc/{self.process.pid}/stat").rsplit(b")", 1)[1]
+            fields = fields.split()
         except (OSError, IndexError):
             return 0.0
         return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")

@@ -278,6 +278,10 @@ def _register_defaults(data: bytes | None = None) -> None:
     # Imported lazily: the bag module pulls in `rosbags`, and it may not exist yet.
     import importlib
 
+    if len(_defaults_registered) == len(_DEFAULT_MODULES) or (
+        data is not None and b"robolab." not in data
+    ):
+        return  # one scan of a large message (an array's bytes) instead of one per module
     for module_name in _DEFAULT_MODULES:
         if module_name in _defaults_registered or (
             data is not None and module_name.encode() not in data

@@ -116,7 +116,8 @@ class Unpickler(_Base):
         allowed: dict[tuple[str, str], Callable[..., Any]],
         classes: dict[tuple[str, str], type],
     ) -> None:
-        super().__init__(io.BytesIO(data))
+        self._message = io.BytesIO(data)
+        super().__init__(self._message)
         self.limits = limits
         self.allowed = allowed
         self.constructors = frozenset(map(id, allowed.values()))
@@ -131,12 +132,11 @@ class Unpickler(_Base):
 
     def load(self) -> Any:
         # The standard loop, counting opcodes (a pure-Python unpickler must be bounded in steps).
-        self._unframer = pickle._Unframer(self._file_read, self._file_readline)
-        self.read, self.readinto, self.readline = (
-            self._unframer.read,
-            self._unframer.readinto,
-            self._unframer.readline,
-        )
+        # The whole message is in memory: opcodes read it directly (FRAME only announces the
+        # size of what follows, see load_frame), without the standard library's frame
+        # buffer, which cost a Python call per opcode and a second copy of every array.
+        self.read, self.readline = self._message.read, self._message.readline
+        self.readinto = self._readinto
         self.metastack, self.stack = [], []
         self.append = self.stack.append
         self.proto = 0
@@ -166,6 +166,16 @@ class Unpickler(_Base):
         if cls is not None:
             return cls
         raise CodecError(f"a value of type {module}.{name} is not plain data and is not accepted")
+
+    def _readinto(self, buffer: bytearray) -> int:
+        n = self._message.readinto(buffer)
+        if n < len(buffer):
+            raise CodecError("the result's encoding was truncated")
+        return n
+
+    def load_frame(self) -> None:
+        # A frame groups the opcodes that follow; read from memory, they need no buffering.
+        self._length("<Q", "a frame")
 
     # -- sizes before allocation --
 
@@ -319,8 +329,8 @@ class Unpickler(_Base):
 
 
 for _name in (
-    "BYTEARRAY8 BINBYTES8 BINUNICODE8 REDUCE NEWOBJ BUILD DICT SETITEM SETITEMS ADDITEMS "
-    "FROZENSET APPEND APPENDS"
+    "FRAME BYTEARRAY8 BINBYTES8 BINUNICODE8 REDUCE NEWOBJ BUILD DICT SETITEM SETITEMS "
+    "ADDITEMS FROZENSET APPEND APPENDS"
 ).split():
     Unpickler.dispatch[getattr(_OPS, _name)[0]] = getattr(Unpickler, f"load_{_name.lower()}")
 
