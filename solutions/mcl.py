@@ -269,14 +269,18 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
             a[0] * n2**2 + a[1] * trans**2,
         ]
     )
-    noise = rng.standard_normal((p.shape[0], 3)) * np.sqrt(var)
-    r1 = rot1 - noise[:, 0]
-    tr = trans - noise[:, 1]
-    r2 = rot2 - noise[:, 2]
+    draws = rng.standard_normal((p.shape[0], 3))
+    # the same products as draws * sqrt(var), stored as (3, N): contiguous rows
+    noise = np.multiply(draws.T, np.sqrt(var)[:, None], out=np.empty((3, p.shape[0])))
+    r1 = rot1 - noise[0]
+    tr = trans - noise[1]
+    r2 = rot2 - noise[2]
     heading = p[:, 2] + r1
-    return np.column_stack(
-        [p[:, 0] + tr * np.cos(heading), p[:, 1] + tr * np.sin(heading), wrap_angle(heading + r2)]
-    )
+    out = np.empty_like(p)
+    out[:, 0] = p[:, 0] + tr * np.cos(heading)
+    out[:, 1] = p[:, 1] + tr * np.sin(heading)
+    out[:, 2] = wrap_angle(heading + r2)
+    return out
 
 
 # ----------------------------------------------------------------------------------------------
