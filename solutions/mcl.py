@@ -20,6 +20,7 @@ Data conventions
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -421,7 +422,8 @@ def likelihood_field_model(scan, particles, field, params):
     # laser's map coordinates plus each beam rotated by (heading - map yaw) / resolution
     # equal world_to_map of the endpoint; float32 halves the memory traffic.
     lp = compose(p, laser)
-    uv = geometry.world_to_map(lp[:, :2]).astype(np.float32) + np.float32(1.0)  # +1: the border
+    uv = geometry.world_to_map(lp[:, :2]).astype(np.float32)
+    uv += np.float32(1.0)  # +1: the border
     phi = lp[:, 2] - geometry.origin[2]
     c = np.cos(phi).astype(np.float32)
     s = np.sin(phi).astype(np.float32)
@@ -814,8 +816,7 @@ def _model_table(field, z_hit, z_rand, rmax):
         raise ValueError(f"field is missing key(s) {missing}")
     sigma = _sigma_hit("field['sigma_hit']", field["sigma_hit"])
     dmax = check_positive("field['max_dist']", field["max_dist"])
-    # an empty grid with the field's geometry: robolab.maps does every cell <-> world conversion
-    geometry = OccupancyGrid(np.zeros((1, 1)), field["resolution"], field["origin"])
+    geometry = _field_geometry(field["resolution"], field["origin"])
     source = field["distance"]
 
     def build():
@@ -831,6 +832,27 @@ def _model_table(field, z_hit, z_rand, rmax):
     if not isinstance(source, np.ndarray):
         return build(), geometry
     return cached_table(source, key, build), geometry
+
+
+def _field_geometry(resolution, origin):
+    """An empty grid with a field's geometry: robolab.maps does every cell <-> world conversion.
+
+    Built once per geometry (:func:`_geometry_of`); anything that is not a plain
+    number and a (3,) origin goes to ``OccupancyGrid`` as it is, which refuses it.
+    """
+    try:
+        o = np.asarray(origin, dtype=float)
+        key = (float(resolution), *o.tolist()) if o.shape == (3,) else None
+    except (TypeError, ValueError):
+        key = None
+    if key is None:
+        return OccupancyGrid(np.zeros((1, 1)), resolution, origin)
+    return _geometry_of(*key)
+
+
+@functools.lru_cache(maxsize=16)
+def _geometry_of(resolution, x, y, theta):
+    return OccupancyGrid(np.zeros((1, 1)), resolution, (x, y, theta))
 
 
 def _sigma_hit(name, value) -> float:
