@@ -51,16 +51,17 @@ def wrap_angle(angle):
         # (fmod, then + 2 pi for a negative one) without fmod, bit for bit: fmod is
         # x itself on (-2 pi, 2 pi) and x - 2 pi (exact, Sterbenz) on [2 pi, 4 pi).
         # NaN and inf fail the test and take the general path below.
-        wrapped = shifted - _TWO_PI * (shifted >= _TWO_PI)
-        wrapped += _TWO_PI * (shifted < 0.0)
+        wrapped = shifted  # a new array: changed in place
+        np.subtract(wrapped, _TWO_PI, out=wrapped, where=wrapped >= _TWO_PI)
+        np.add(wrapped, _TWO_PI, out=wrapped, where=wrapped < 0.0)
         wrapped -= np.pi
     else:
         if np.isinf(a).any():
             raise ValueError("angle must be finite: an infinite angle has no direction")
         wrapped = shifted % _TWO_PI - np.pi
     # Just below -pi, (a + pi) % 2pi rounds up to 2pi and the result would be +pi.
-    wrapped = np.where(wrapped >= np.pi, wrapped - 2.0 * np.pi, wrapped)
-    return float(wrapped) if wrapped.ndim == 0 else wrapped
+    np.subtract(wrapped, _TWO_PI, out=wrapped, where=wrapped >= np.pi)
+    return wrapped
 
 
 def angle_diff(a, b):
