@@ -27,6 +27,8 @@ B values in beam order in float64: the two paths give the same bits.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from robolab import raycast
@@ -182,7 +184,17 @@ def _fused():
                 from robolab import _fieldsum_jit
 
                 kernel = _fieldsum_jit.pose_table_sum
-            except Exception:  # noqa: BLE001 - any failure of numba means: the numpy path
+                # compile (or load from numba's cache) now, on a tiny table, so that a
+                # broken numba falls back here and not in the middle of a filter
+                one, out = np.ones(1, np.float32), np.empty(1)
+                kernel(one, 1, 1, np.zeros((1, 3)), np.zeros(3), np.zeros(3), np.array([1.0, 0.0]),
+                       1.0, one, one, out)
+            except Exception as exc:  # noqa: BLE001 - any failure of numba means: the numpy path
+                warnings.warn(
+                    f"robolab.fieldsum: the fused kernel is unavailable ({exc!r}); "
+                    "using the numpy path (same sums, slower)",
+                    stacklevel=3,
+                )
                 kernel = None
         _FUSED.append(kernel)
     return _FUSED[0]
