@@ -458,9 +458,9 @@ def normalize_log_weights(logw):
     lw = as_array("logw", logw, ndim=1)
     if lw.size == 0:
         raise ValueError("logw must hold at least one log-weight")
-    if np.isnan(lw).any() or np.isposinf(lw).any():
+    top = lw.max()  # NaN if any entry is NaN, +inf if any is +inf
+    if np.isnan(top) or top == np.inf:
         raise ValueError("logw must not contain NaN or +inf")
-    top = lw.max()
     if not np.isfinite(top):
         raise ValueError("logw is -inf everywhere: every particle has zero weight")
     w = np.exp(lw - top)
