@@ -2,14 +2,18 @@
 
 Pinned to one core. Prints a table:
 
-* ``mcl_step`` with the likelihood field, 5000 particles x 60 beams (target >= 200 Hz);
+* ``mcl_step`` with the likelihood field, 5000 particles x 60 beams (target >= 500 Hz);
+* ``mcl_step`` vs the number of particles (5 000 to 100 000): the fused compiled
+  look-up, the same with the laser poses and cells in numpy (before), the numpy
+  path in blocks and on whole (N, B) temporaries, interleaved;
 * the same likelihood evaluation as a per-particle Python loop (the baseline,
   measured on a subset of particles in the same run and scaled to 5000);
 * map-size independence: the step on the bundled map and on the same map
   embedded in a grid of 16x the cells (about 1.75 M), with the per-cell table
-  cached (the field of ``likelihood_field`` is read-only) and rebuilt on every
-  call (a writeable copy of the field, the cost before the cache); interleaved,
-  best of 20 by process CPU time;
+  cached (the field of ``likelihood_field`` is read-only), matched by content (a
+  writeable copy of the field, whose bytes are compared on every call, as for the
+  copy the grading worker decodes) and rebuilt on every call (the content cache
+  switched off: the cost before the caches); interleaved, best of 20 by process CPU time;
 * the whole ``data/localization.bag`` (every scan) with 2000 particles, as a
   multiple of real time (target >= 10x).
 
@@ -31,7 +35,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from robolab import fieldsum  # noqa: E402
+from robolab import fieldsum, tablecache  # noqa: E402
 from robolab.geometry import compose  # noqa: E402
 from robolab.maps import OccupancyGrid  # noqa: E402
 from robolab.plotting import mcl as mclplot  # noqa: E402
@@ -77,11 +81,21 @@ def embedded(grid: OccupancyGrid, k: int) -> OccupancyGrid:
 
 
 def map_size_rows(data, scan, prm, rng):
-    """Best CPU seconds of mcl_step with cached and rebuilt tables, bundled and 16x map."""
+    """Best CPU seconds of mcl_step, bundled and 16x map: table cached per (frozen) array,
+    matched by content (a writeable copy of the field: its bytes compared on every call, as
+    for the copy the grading worker decodes), rebuilt on every call (content cache off)."""
     particles = mcl.init_uniform(data.grid, N_STEP, rng)
     weights = np.full(N_STEP, 1.0 / N_STEP)
     calls = {}
     sizes = {}
+
+    def step(f, by_content=tablecache.MAX_BY_CONTENT):
+        kept, tablecache.MAX_BY_CONTENT = tablecache.MAX_BY_CONTENT, by_content
+        try:
+            mcl.mcl_step(particles, weights, data.odom[99], data.odom[100], scan, f, prm, rng)
+        finally:
+            tablecache.MAX_BY_CONTENT = kept
+
     for name, grid in (
         ("bundled map", data.grid),
         ("embedded in 16x cells", embedded(data.grid, 4)),
@@ -89,23 +103,36 @@ def map_size_rows(data, scan, prm, rng):
         field = mcl.likelihood_field(grid, 0.1, 2.0)
         writeable = {k: np.array(v) if isinstance(v, np.ndarray) else v for k, v in field.items()}
         sizes[name] = grid.data.size
-        for kind, f in (("cached", field), ("rebuilt", writeable)):
-            calls[name, kind] = lambda f=f: mcl.mcl_step(
-                particles, weights, data.odom[99], data.odom[100], scan, f, prm, rng
-            )
-    for fn in calls.values():  # warm-up (and the cache's first build)
+        calls[name, "cached"] = lambda f=field: step(f)
+        calls[name, "content"] = lambda f=writeable: step(f)
+        calls[name, "rebuilt"] = lambda f=writeable: step(f, 0)
+    for fn in calls.values():  # warm-up (and the caches' first builds)
         fn()
     best = timing.interleaved(calls, 20)
-    return [(name, sizes[name], best[name, "cached"], best[name, "rebuilt"]) for name in sizes]
+    return [
+        (name, sizes[name], best[name, "cached"], best[name, "content"], best[name, "rebuilt"])
+        for name in sizes
+    ]
+
+
+def _unfused(table, poses, laser, geometry, qx, qy):
+    """The look-up before the fused kernel: laser poses and cells in numpy, compiled sum."""
+    lp = compose(poses, laser)
+    uv = geometry.world_to_map(lp[:, :2]).astype(np.float32) + np.float32(1.0)
+    phi = lp[:, 2] - geometry.origin[2]
+    c, s = np.cos(phi).astype(np.float32), np.sin(phi).astype(np.float32)
+    return fieldsum.table_sum(table, uv, c, s, qx, qy, backend="numba")
 
 
 def scaling_rows(data, scan, prm, rng):
-    """mcl_step CPU seconds per particle count: compiled lookup, numpy in blocks, numpy whole."""
+    """mcl_step CPU seconds per particle count: fused kernel, numpy poses + compiled sum
+    (before), numpy in blocks (the grading worker), numpy on whole (N, B) temporaries."""
     rows = []
     variants = {
-        "numba": ("numba", fieldsum.BLOCK),
-        "numpy": ("numpy", fieldsum.BLOCK),
-        "whole": ("numpy", sys.maxsize),  # whole (N, B) temporaries: the lookup before
+        "fused": (functools.partial(fieldsum.pose_table_sum, backend="numba"), BLOCK),
+        "unfused": (_unfused, BLOCK),
+        "numpy": (functools.partial(fieldsum.pose_table_sum, backend="numpy"), BLOCK),
+        "whole": (functools.partial(fieldsum.pose_table_sum, backend="numpy"), sys.maxsize),
     }
     for n in SCALING:
         particles = mcl.init_uniform(data.grid, n, rng)
@@ -113,20 +140,19 @@ def scaling_rows(data, scan, prm, rng):
         field = mcl.likelihood_field(data.grid, 0.1, 2.0)
 
         def step(variant, particles=particles, weights=weights, field=field):
-            backend, fieldsum.BLOCK = variants[variant]
-            mcl.table_sum = functools.partial(fieldsum.table_sum, backend=backend)
+            mcl.pose_table_sum, fieldsum.BLOCK = variants[variant]
             try:
                 mcl.mcl_step(
                     particles, weights, data.odom[99], data.odom[100], scan, field, prm, rng
                 )
             finally:
-                mcl.table_sum, fieldsum.BLOCK = fieldsum.table_sum, BLOCK
+                mcl.pose_table_sum, fieldsum.BLOCK = fieldsum.pose_table_sum, BLOCK
 
-        step("numba")  # compile (or load) the kernel outside the timing
+        step("fused"), step("unfused")  # compile (or load) the kernels outside the timing
         best = timing.interleaved(
             {v: (lambda v=v: step(v)) for v in variants}, 20 if n <= 20_000 else 5
         )
-        rows.append((n, best["numba"], best["numpy"], best["whole"]))
+        rows.append((n, best["fused"], best["unfused"], best["numpy"], best["whole"]))
     return rows
 
 
@@ -191,19 +217,22 @@ def main() -> None:
     print(f"  mcl_step at {N_STEP} particles: {1 / t_step:.0f} Hz (target >= 500 Hz, issue 29)")
     print()
     print(
-        f"mcl_step vs particles ({BEAMS} beams, CPU time, interleaved): likelihood lookup "
-        f"compiled (robolab.fieldsum, the default), in numpy blocks of {BLOCK} endpoints "
-        "(ROBOLAB_RAYCAST=numpy, the grading worker), numpy on whole (N, B) temporaries (before)"
+        f"mcl_step vs particles ({BEAMS} beams, CPU time, interleaved): look-up compiled in one "
+        "fused pass per particle (robolab.fieldsum.pose_table_sum, the default); laser poses "
+        "and cells in numpy, compiled sum (before); numpy in blocks of "
+        f"{BLOCK} endpoints (ROBOLAB_RAYCAST=numpy, the grading worker); numpy on whole (N, B) "
+        "temporaries"
     )
     print(
-        f"{'particles':>9} {'compiled [ms]':>14} {'rate [Hz]':>10} {'ms/1000':>8} "
-        f"{'numpy [ms]':>11} {'rate [Hz]':>10} {'whole [ms]':>11} {'whole/compiled':>15}"
+        f"{'particles':>9} {'fused [ms]':>11} {'rate [Hz]':>10} {'ms/1000':>8} "
+        f"{'before [ms]':>12} {'before/fused':>13} {'numpy [ms]':>11} {'rate [Hz]':>10} "
+        f"{'whole [ms]':>11}"
     )
-    for n, jit, blocked, whole in scale_rows:
+    for n, fused, unfused, blocked, whole in scale_rows:
         print(
-            f"{n:>9d} {jit * 1e3:>14.2f} {1 / jit:>10.1f} {jit / n * 1e6:>8.3f} "
-            f"{blocked * 1e3:>11.2f} {1 / blocked:>10.1f} {whole * 1e3:>11.2f} "
-            f"{whole / jit:>14.2f}x"
+            f"{n:>9d} {fused * 1e3:>11.2f} {1 / fused:>10.1f} {fused / n * 1e6:>8.3f} "
+            f"{unfused * 1e3:>12.2f} {unfused / fused:>12.2f}x {blocked * 1e3:>11.2f} "
+            f"{1 / blocked:>10.1f} {whole * 1e3:>11.2f}"
         )
     first, last = scale_rows[0], scale_rows[-1]
 
@@ -211,19 +240,24 @@ def main() -> None:
         return (last[i] / last[0]) / (first[i] / first[0])
 
     print(
-        f"  cost per particle at {last[0]} / at {first[0]} (linear: ~1): compiled {growth(1):.2f}, "
-        f"numpy blocks {growth(2):.2f}, whole temporaries {growth(3):.2f}; "
-        f"targets >= 500 Hz at 5,000 and >= 25 Hz at 100,000"
+        f"  cost per particle at {last[0]} / at {first[0]} (linear: ~1): fused {growth(1):.2f}, "
+        f"before {growth(2):.2f}, numpy blocks {growth(3):.2f}, whole temporaries "
+        f"{growth(4):.2f}; targets >= 500 Hz at 5,000 and >= 25 Hz at 100,000"
     )
     print()
-    print(f"per-step cost vs map size ({N_STEP} particles x {BEAMS} beams, CPU time, best of 20)")
     print(
-        f"{'map':<22} {'cells':>10} {'cached [ms]':>12} {'rebuilt [ms]':>13} {'rebuilt/cached':>15}"
+        f"per-step cost vs map size ({N_STEP} particles x {BEAMS} beams, CPU time, best of 20; "
+        "table cached per frozen array, matched by content for a writeable copy "
+        "of the field, rebuilt every call)"
     )
-    for name, cells, cached, rebuilt in size_rows:
+    print(
+        f"{'map':<22} {'cells':>10} {'cached [ms]':>12} {'content [ms]':>13} "
+        f"{'rebuilt [ms]':>13} {'rebuilt/content':>16}"
+    )
+    for name, cells, cached, content, rebuilt in size_rows:
         print(
-            f"{name:<22} {cells:>10d} {cached * 1e3:>12.2f} {rebuilt * 1e3:>13.2f}"
-            f" {rebuilt / cached:>14.1f}x"
+            f"{name:<22} {cells:>10d} {cached * 1e3:>12.2f} {content * 1e3:>13.2f} "
+            f"{rebuilt * 1e3:>13.2f} {rebuilt / content:>15.1f}x"
         )
     small, big = size_rows[0][2], size_rows[1][2]
     print(

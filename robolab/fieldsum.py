@@ -12,24 +12,33 @@ column ``u`` and row ``v``)
 endpoint in the laser frame, in cells), clipped into the table, and the result is
 :math:`\\sum_k T[\\lfloor v_{ik} \\rfloor, \\lfloor u_{ik} \\rfloor]`.
 
+:func:`pose_table_sum` starts one step earlier, from the robots' poses: the laser's
+pose, its map coordinates and its heading's cosine and sine are computed per pose
+too (in numpy: :func:`robolab.geometry.compose` and
+:meth:`robolab.maps.OccupancyGrid.world_to_map`; compiled: the same operations
+fused into the kernel, :mod:`robolab._fieldsum_jit`).
+
 Two paths, chosen like :mod:`robolab.raycast`'s backends (``ROBOLAB_RAYCAST=numpy``
 forces numpy): a compiled kernel (:func:`robolab._raycast_jit.table_sum`, one fused
 pass) and numpy in cache-sized blocks of particles. Both compute the endpoints in
-float32 with the same operations, so they look up the same cells; the sums agree to
-the rounding of their order (about 1e-15 relative).
+float32 with the same operations, so they look up the same cells, and both add the
+B values in beam order in float64: the two paths give the same bits.
 """
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from robolab import raycast
+from robolab.geometry import compose
 
-__all__ = ["table_sum", "numpy_table_sum"]
+__all__ = ["table_sum", "numpy_table_sum", "pose_table_sum"]
 
 #: numpy_table_sum looks up about this many endpoints at a time: whole (N, B) temporaries
 #: would spill out of the core's cache once N is large, and the time would grow faster than N.
-BLOCK = 1 << 16
+BLOCK = 1 << 15
 
 
 def table_sum(table, uv, c, s, qx, qy, backend=None):
@@ -65,36 +74,127 @@ def table_sum(table, uv, c, s, qx, qy, backend=None):
 
 
 def numpy_table_sum(table, uv, c, s, qx, qy):
-    """:func:`table_sum` in numpy, in blocks of about :data:`BLOCK` endpoints."""
+    """:func:`table_sum` in numpy, in blocks of about :data:`BLOCK` endpoints.
+
+    The temporaries are (beams, particles): every operation runs along the particles
+    (long contiguous rows, one scalar per beam) and the sum over the beams adds row
+    after row in beam order into float64, as the compiled kernel does: the two paths
+    give the same bits.
+    """
     rows, cols = table.shape
     flat = table.ravel()
     n, b = uv.shape[0], qx.shape[0]
     per = max(1, BLOCK // max(b, 1))
     out = np.empty(n)
-    u = np.empty((min(per, n), b), np.float32)
-    v = np.empty_like(u)
-    tmp = np.empty_like(u)
-    index = np.empty(u.shape, np.int32)
-    col = np.empty(u.shape, np.int32)
+    u0, v0 = np.ascontiguousarray(uv[:, 0]), np.ascontiguousarray(uv[:, 1])
+    qx, qy = qx[:, None], qy[:, None]
+    hi_u, hi_v = np.float32(cols - 1), np.float32(rows - 1)
+    shape = (b, min(per, n))
+    u, v, tmp = (np.empty(shape, np.float32) for _ in range(3))
+    index, col = np.empty(shape, np.int32), np.empty(shape, np.int32)
     for i in range(0, n, per):
         k = min(per, n - i)
-        cs, ss = c[i : i + k, None], s[i : i + k, None]
-        uu, vv, tt, ii, cc = u[:k], v[:k], tmp[:k], index[:k], col[:k]
+        cs, ss = c[i : i + k], s[i : i + k]
+        uu, vv, tt, ii, cc = u[:, :k], v[:, :k], tmp[:, :k], index[:, :k], col[:, :k]
         np.multiply(cs, qx, out=uu)
         np.multiply(ss, qy, out=tt)
         uu -= tt
-        uu += uv[i : i + k, 0:1]
+        uu += u0[i : i + k]
         np.multiply(ss, qx, out=vv)
         np.multiply(cs, qy, out=tt)
         vv += tt
-        vv += uv[i : i + k, 1:2]
+        vv += v0[i : i + k]
         # clip into the border; floor == truncation for u >= 0
-        np.clip(uu, 0, cols - 1, out=uu)
-        np.clip(vv, 0, rows - 1, out=vv)
+        np.clip(uu, 0, hi_u, out=uu)
+        np.clip(vv, 0, hi_v, out=vv)
         np.copyto(ii, vv, casting="unsafe")
         ii *= np.int32(cols)
         np.copyto(cc, uu, casting="unsafe")
         ii += cc
-        np.take(flat, ii, out=tt)
-        tt.sum(axis=1, dtype=np.float64, out=out[i : i + k])
+        np.take(flat, ii, out=tt, mode="clip")  # in range already; "raise" would buffer
+        np.add.reduce(tt, axis=0, dtype=np.float64, out=out[i : i + k])
     return out
+
+
+def pose_table_sum(table, poses, laser, geometry, qx, qy, backend=None):
+    """Per pose, the sum over beams of ``table`` at the endpoints of a laser on that pose.
+
+    The endpoints of :func:`table_sum`, with ``uv, c, s`` those of the laser at
+    ``compose(pose, laser)``: ``uv`` its map coordinates in float32 plus one (the
+    table's border), ``c, s`` the cosine and sine of its heading minus the map's yaw.
+
+    Parameters
+    ----------
+    table : numpy.ndarray, shape (H + 2, W + 2), float32
+        Per-cell values of the map with a one-cell border (endpoints off the map).
+    poses : numpy.ndarray, shape (N, 3), float64
+        Robot poses ``(x, y, theta)`` in the map frame, finite.
+    laser : numpy.ndarray, shape (3,)
+        The laser's pose on the robot.
+    geometry : robolab.maps.OccupancyGrid
+        A grid with the map's resolution and origin (its cells are not read).
+    qx, qy : numpy.ndarray, shape (B,), float32
+        The beam endpoints in the laser frame, cells.
+    backend : {"numba", "numpy"}, optional
+        Default: :func:`robolab.raycast.default_backend`.
+
+    Returns
+    -------
+    numpy.ndarray, shape (N,)
+        The same bits on both paths where numpy's float64 ``cos`` and ``sin`` are the
+        C library's (x86-64 without AVX-512; tested): elsewhere an endpoint within a
+        rounding of a cell boundary may fall in the neighbouring cell.
+    """
+    backend = backend or raycast.default_backend()
+    if backend not in raycast.BACKENDS:
+        raise ValueError(f"backend must be one of {raycast.BACKENDS}, got {backend!r}")
+    poses = np.ascontiguousarray(poses, dtype=float)
+    laser = np.ascontiguousarray(laser, dtype=float)
+    kernel = _fused() if backend == "numba" else None
+    if kernel is None:
+        lp = compose(poses, laser)
+        uv = geometry.world_to_map(lp[:, :2]).astype(np.float32)
+        uv += np.float32(1.0)  # the border
+        phi = lp[:, 2] - geometry.origin[2]
+        return table_sum(
+            table, uv, np.cos(phi).astype(np.float32), np.sin(phi).astype(np.float32), qx, qy,
+            backend=backend,
+        )
+    table = np.ascontiguousarray(table, dtype=np.float32)
+    origin = np.asarray(geometry.origin, dtype=float)
+    rot = np.array([np.cos(origin[2]), np.sin(origin[2])])  # as world_to_map computes them
+    out = np.empty(poses.shape[0])
+    kernel(
+        table.ravel(), *table.shape, poses, laser, origin, rot, float(geometry.resolution),
+        np.ascontiguousarray(qx, dtype=np.float32), np.ascontiguousarray(qy, dtype=np.float32),
+        out,
+    )
+    return out
+
+
+_FUSED = []
+
+
+def _fused():
+    """The compiled :func:`robolab._fieldsum_jit.pose_table_sum`, or None without numba."""
+    if not _FUSED:
+        kernel = None
+        if raycast._jit() is not None:  # numba works and ROBOLAB_RAYCAST is not numpy
+            try:
+                from robolab import _fieldsum_jit
+
+                kernel = _fieldsum_jit.pose_table_sum
+                # compile (or load from numba's cache) now, on a tiny table, so that a
+                # broken numba falls back here and not in the middle of a filter
+                one, out = np.ones(1, np.float32), np.empty(1)
+                kernel(one, 1, 1, np.zeros((1, 3)), np.zeros(3), np.zeros(3), np.array([1.0, 0.0]),
+                       1.0, one, one, out)
+            except Exception as exc:  # noqa: BLE001 - any failure of numba means: the numpy path
+                warnings.warn(
+                    f"robolab.fieldsum: the fused kernel is unavailable ({exc!r}); "
+                    "using the numpy path (same sums, slower)",
+                    stacklevel=3,
+                )
+                kernel = None
+        _FUSED.append(kernel)
+    return _FUSED[0]

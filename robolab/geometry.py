@@ -7,6 +7,8 @@ an ``(N, 3)`` array. Angles are wrapped to ``[-pi, pi)`` by :func:`wrap_angle`.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from robolab.validation import as_array, as_poses
@@ -25,6 +27,10 @@ __all__ = [
 ]
 
 
+#: 2 pi as numpy's ``2.0 * np.pi`` (the modulus of :func:`wrap_angle`).
+_TWO_PI = 2.0 * np.pi
+
+
 def wrap_angle(angle):
     """Wrap angles to ``[-pi, pi)``.
 
@@ -33,12 +39,29 @@ def wrap_angle(angle):
     direction and raises ValueError.
     """
     a = np.asarray(angle, dtype=float)
-    if np.isinf(a).any():
-        raise ValueError("angle must be finite: an infinite angle has no direction")
-    wrapped = (a + np.pi) % (2.0 * np.pi) - np.pi
+    if a.ndim == 0:  # Python's float % is numpy's remainder (fmod, sign fixed), and faster
+        x = float(a)
+        if math.isinf(x):
+            raise ValueError("angle must be finite: an infinite angle has no direction")
+        x = (x + math.pi) % _TWO_PI - math.pi
+        return x - _TWO_PI if x >= math.pi else x
+    shifted = a + np.pi
+    if shifted.size and -_TWO_PI <= shifted.min() and shifted.max() < 2.0 * _TWO_PI:
+        # The common case, angles within a turn of [-pi, pi): numpy's float remainder
+        # (fmod, then + 2 pi for a negative one) without fmod, bit for bit: fmod is
+        # x itself on (-2 pi, 2 pi) and x - 2 pi (exact, Sterbenz) on [2 pi, 4 pi).
+        # NaN and inf fail the test and take the general path below.
+        wrapped = shifted  # a new array: changed in place
+        np.subtract(wrapped, _TWO_PI, out=wrapped, where=wrapped >= _TWO_PI)
+        np.add(wrapped, _TWO_PI, out=wrapped, where=wrapped < 0.0)
+        wrapped -= np.pi
+    else:
+        if np.isinf(a).any():
+            raise ValueError("angle must be finite: an infinite angle has no direction")
+        wrapped = shifted % _TWO_PI - np.pi
     # Just below -pi, (a + pi) % 2pi rounds up to 2pi and the result would be +pi.
-    wrapped = np.where(wrapped >= np.pi, wrapped - 2.0 * np.pi, wrapped)
-    return float(wrapped) if wrapped.ndim == 0 else wrapped
+    np.subtract(wrapped, _TWO_PI, out=wrapped, where=wrapped >= np.pi)
+    return wrapped
 
 
 def angle_diff(a, b):

@@ -197,10 +197,11 @@ def low_variance_resample(particles, weights, rng):
     if n == 0:
         raise ValueError("particles must contain at least one particle")
     w = as_array("weights", weights, shape=(n,))
-    if not np.all(np.isfinite(w)):
-        raise ValueError("weights must be finite (no NaN or inf)")
-    if np.any(w < 0):
-        raise ValueError(f"weights must be non-negative, got minimum {w.min()}")
+    lowest, highest = w.min(), w.max()  # NaN in either when any weight is NaN
+    if not (lowest >= 0 and highest < np.inf):
+        if not np.all(np.isfinite(w)):
+            raise ValueError("weights must be finite (no NaN or inf)")
+        raise ValueError(f"weights must be non-negative, got minimum {lowest}")
     with np.errstate(over="ignore"):  # weights near 1e308: rescaled below
         total = w.sum()
     if not total > 0:
@@ -216,8 +217,9 @@ def low_variance_resample(particles, weights, rng):
     pointers = r + np.arange(n) / n
     idx = np.searchsorted(c, pointers, side="right")
     # Rounding can leave c[-1] a hair below 1: never step past the last particle with weight.
-    idx = np.minimum(idx, np.flatnonzero(w)[-1])
-    return p[idx]  # fancy indexing copies: no aliasing
+    last = n - 1 - int(np.argmax(w[::-1] > 0))  # the last particle with weight
+    np.minimum(idx, last, out=idx)
+    return np.take(p, idx, axis=0)  # a copy: no aliasing
 
 
 def particle_filter(

@@ -20,13 +20,14 @@ Data conventions
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 from scipy import ndimage
 
-from robolab.fieldsum import table_sum
-from robolab.geometry import angle_diff, compose, wrap_angle
+from robolab.fieldsum import pose_table_sum
+from robolab.geometry import angle_diff, wrap_angle
 from robolab.maps import OccupancyGrid
 from robolab.tablecache import cached_table, freeze
 from robolab.validation import LOG_FLOAT_MAX, as_array, as_poses, check_positive
@@ -269,14 +270,18 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
             a[0] * n2**2 + a[1] * trans**2,
         ]
     )
-    noise = rng.standard_normal((p.shape[0], 3)) * np.sqrt(var)
-    r1 = rot1 - noise[:, 0]
-    tr = trans - noise[:, 1]
-    r2 = rot2 - noise[:, 2]
+    draws = rng.standard_normal((p.shape[0], 3))
+    # the same products as draws * sqrt(var), stored as (3, N): contiguous rows
+    noise = np.multiply(draws.T, np.sqrt(var)[:, None], out=np.empty((3, p.shape[0])))
+    r1 = rot1 - noise[0]
+    tr = trans - noise[1]
+    r2 = rot2 - noise[2]
     heading = p[:, 2] + r1
-    return np.column_stack(
-        [p[:, 0] + tr * np.cos(heading), p[:, 1] + tr * np.sin(heading), wrap_angle(heading + r2)]
-    )
+    out = np.empty_like(p)
+    out[:, 0] = p[:, 0] + tr * np.cos(heading)
+    out[:, 1] = p[:, 1] + tr * np.sin(heading)
+    out[:, 2] = wrap_angle(heading + r2)
+    return out
 
 
 # ----------------------------------------------------------------------------------------------
@@ -414,17 +419,14 @@ def likelihood_field_model(scan, particles, field, params):
     if not use.any():
         return np.zeros(p.shape[0])
     # Endpoints in continuous map coordinates (cells). world_to_map is affine, so the
-    # laser's map coordinates plus each beam rotated by (heading - map yaw) / resolution
-    # equal world_to_map of the endpoint; float32 halves the memory traffic.
-    lp = compose(p, laser)
-    uv = geometry.world_to_map(lp[:, :2]).astype(np.float32) + np.float32(1.0)  # +1: the border
-    phi = lp[:, 2] - geometry.origin[2]
-    c = np.cos(phi).astype(np.float32)
-    s = np.sin(phi).astype(np.float32)
+    # laser's map coordinates (compose(particle, laser_pose), then world_to_map) plus
+    # each beam rotated by (heading - map yaw) / resolution equal world_to_map of the
+    # endpoint; float32 halves the memory traffic. robolab.fieldsum does this per
+    # particle: compiled in one fused pass, or in numpy in cache-sized blocks.
     r, a = ranges[use], angles[use]
     qx = (r * np.cos(a) / geometry.resolution).astype(np.float32)
     qy = (r * np.sin(a) / geometry.resolution).astype(np.float32)
-    return table_sum(table, uv, c, s, qx, qy)  # compiled, or numpy in cache-sized blocks
+    return pose_table_sum(table, p, laser, geometry, qx, qy)
 
 
 def normalize_log_weights(logw):
@@ -456,9 +458,9 @@ def normalize_log_weights(logw):
     lw = as_array("logw", logw, ndim=1)
     if lw.size == 0:
         raise ValueError("logw must hold at least one log-weight")
-    if np.isnan(lw).any() or np.isposinf(lw).any():
+    top = lw.max()  # NaN if any entry is NaN, +inf if any is +inf
+    if np.isnan(top) or top == np.inf:
         raise ValueError("logw must not contain NaN or +inf")
-    top = lw.max()
     if not np.isfinite(top):
         raise ValueError("logw is -inf everywhere: every particle has zero weight")
     w = np.exp(lw - top)
@@ -810,8 +812,7 @@ def _model_table(field, z_hit, z_rand, rmax):
         raise ValueError(f"field is missing key(s) {missing}")
     sigma = _sigma_hit("field['sigma_hit']", field["sigma_hit"])
     dmax = check_positive("field['max_dist']", field["max_dist"])
-    # an empty grid with the field's geometry: robolab.maps does every cell <-> world conversion
-    geometry = OccupancyGrid(np.zeros((1, 1)), field["resolution"], field["origin"])
+    geometry = _field_geometry(field["resolution"], field["origin"])
     source = field["distance"]
 
     def build():
@@ -827,6 +828,27 @@ def _model_table(field, z_hit, z_rand, rmax):
     if not isinstance(source, np.ndarray):
         return build(), geometry
     return cached_table(source, key, build), geometry
+
+
+def _field_geometry(resolution, origin):
+    """An empty grid with a field's geometry: robolab.maps does every cell <-> world conversion.
+
+    Built once per geometry (:func:`_geometry_of`); anything that is not a plain
+    number and a (3,) origin goes to ``OccupancyGrid`` as it is, which refuses it.
+    """
+    try:
+        o = np.asarray(origin, dtype=float)
+        key = (float(resolution), *o.tolist()) if o.shape == (3,) else None
+    except (TypeError, ValueError):
+        key = None
+    if key is None:
+        return OccupancyGrid(np.zeros((1, 1)), resolution, origin)
+    return _geometry_of(*key)
+
+
+@functools.lru_cache(maxsize=16)
+def _geometry_of(resolution, x, y, theta):
+    return OccupancyGrid(np.zeros((1, 1)), resolution, (x, y, theta))
 
 
 def _sigma_hit(name, value) -> float:

@@ -1,0 +1,93 @@
+"""The compiled kernel of :func:`robolab.fieldsum.pose_table_sum` (numba, one core).
+
+Imported lazily by :mod:`robolab.fieldsum`, only when :mod:`robolab.raycast`'s
+compiled kernels load (so ``ROBOLAB_RAYCAST=numpy`` keeps numba out here too).
+
+One pass per pose, with no (N, B) and no (N,) temporaries: the laser's pose
+(:func:`robolab.geometry.compose`), its map coordinates
+(:meth:`robolab.maps.OccupancyGrid.world_to_map`), the cosine and sine of its
+heading in the map, then the table sum of :func:`robolab._raycast_jit.table_sum`.
+Every step is the numpy path's operation, in its order and precision (float64
+up to the map coordinates, float32 from the endpoints on; numba contracts no
+``a * b + c`` into a fused multiply-add without fastmath), and ``math.cos`` /
+``math.sin`` are the C library's, which numpy's float64 ``cos`` / ``sin`` call
+on x86-64 without AVX-512: there the two paths give the same bits (tested).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+TWO_PI = 2.0 * np.pi
+
+
+@njit(cache=True, nogil=True)
+def _wrap(a):  # pragma: no cover - compiled
+    """:func:`robolab.geometry.wrap_angle` of a finite float, bit for bit."""
+    x = a + math.pi
+    if -TWO_PI <= x < 2.0 * TWO_PI:  # numpy's remainder on this range (see wrap_angle)
+        if x >= TWO_PI:
+            x = x - TWO_PI
+        elif x < 0.0:
+            x = x + TWO_PI
+    else:
+        x = x % TWO_PI  # numba's float % is CPython's: fmod, sign fixed, as numpy's remainder
+    x = x - math.pi
+    if x >= math.pi:
+        x = x - TWO_PI
+    return x
+
+
+@njit(cache=True, nogil=True)
+def pose_table_sum(  # pragma: no cover - compiled
+    flat, rows, cols, poses, laser, origin, rot, res, qx, qy, out
+):
+    """``out[i]``: the table sum at the beam endpoints of the laser on pose ``poses[i]``.
+
+    ``laser`` is the laser's pose on the robot, ``origin`` the map's origin,
+    ``rot`` = ``(cos, sin)`` of the origin's yaw as numpy computes them, ``res``
+    the resolution; ``qx, qy`` the beam endpoints in the laser frame (cells,
+    float32). The table has a one-cell border, hence the ``+ 1``.
+    """
+    hi_u = np.float32(cols - 1)
+    hi_v = np.float32(rows - 1)
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    lx, ly, lt = laser[0], laser[1], laser[2]
+    ox, oy, oyaw = origin[0], origin[1], origin[2]
+    co, so = rot[0], rot[1]
+    n_beams = qx.shape[0]
+    index = np.empty(n_beams, np.int64)
+    for i in range(poses.shape[0]):
+        px, py, pt = poses[i, 0], poses[i, 1], poses[i, 2]
+        # compose(pose, laser)
+        c = math.cos(pt)
+        s = math.sin(pt)
+        x = px + c * lx - s * ly
+        y = py + s * lx + c * ly
+        heading = _wrap(pt + lt)
+        # world_to_map, then float32 and the border
+        dx = x - ox
+        dy = y - oy
+        u0 = np.float32((co * dx + so * dy) / res) + one
+        v0 = np.float32((-so * dx + co * dy) / res) + one
+        phi = heading - oyaw
+        ci = np.float32(math.cos(phi))
+        si = np.float32(math.sin(phi))
+        for k in range(n_beams):
+            u = ci * qx[k]
+            u = u - si * qy[k]
+            u = u + u0
+            v = si * qx[k]
+            v = v + ci * qy[k]
+            v = v + v0
+            u = min(max(u, zero), hi_u)
+            v = min(max(v, zero), hi_v)
+            index[k] = np.int64(np.int32(v)) * cols + np.int64(np.int32(u))
+        acc = 0.0
+        for k in range(n_beams):
+            acc += flat[index[k]]
+        out[i] = acc
