@@ -410,9 +410,16 @@ def table_sum(flat, rows, cols, uv, c, s, qx, qy, out):  # pragma: no cover - co
             v = si * qx[k]
             v = v + ci * qy[k]
             v = v + v0
-            u = min(max(u, zero), hi_u)
-            v = min(max(v, zero), hi_v)
-            index[k] = np.int64(np.int32(v)) * cols + np.int64(np.int32(u))
+            # min/max by selects that send NaN to 0 (an int32 of NaN would index outside
+            # the table: poses at +-1e308 or NaN); a NaN endpoint reads cell 0, as numpy's
+            # clipped take does. Branch-free, so LLVM still vectorizes the loop.
+            nan = (u != u) | (v != v)
+            u = u if u > zero else zero
+            u = u if u < hi_u else hi_u
+            v = v if v > zero else zero
+            v = v if v < hi_v else hi_v
+            cell = np.int64(np.int32(v)) * cols + np.int64(np.int32(u))
+            index[k] = 0 if nan else cell
         acc = 0.0
         for k in range(n_beams):
             acc += flat[index[k]]

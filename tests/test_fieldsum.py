@@ -104,3 +104,43 @@ def test_fused_kernel_gives_the_numpy_paths_bits(n):
         assert np.mean(fused == reference) >= 0.99
     if n <= 40:
         np.testing.assert_array_equal(reference, pose_brute_force(*args))
+
+
+@pytest.mark.parametrize("backend", ["numpy", "numba"])
+def test_poses_at_the_float_limits_stay_inside_the_table(backend):
+    """Poses near +-1e308 (infinite endpoints) and NaN poses (outside the contract, but
+    memory safety does not depend on it): both paths read cells of the table (a NaN
+    endpoint reads cell 0), never memory outside it (the compiled kernel checks no bounds)."""
+    if backend == "numba" and raycast._jit() is None:
+        pytest.skip("numba unavailable")
+    table, poses, laser, geometry, qx, qy = pose_problem(6, seed=3)
+    poses[0, :2] = 1.7e308
+    poses[1, :2] = -1.7e308
+    poses[2] = [1e308, -1e308, 1e300]
+    poses[3, 0] = np.nan
+    poses[4, 2] = np.nan
+    table[0, 0] = 1000.0  # a NaN endpoint's cell: visible in the sum
+    with np.errstate(all="ignore"):  # numpy's overflow warnings are right here
+        got = fieldsum.pose_table_sum(table, poses, laser, geometry, qx, qy, backend=backend)
+        reference = fieldsum.pose_table_sum(
+            table, poses, laser, geometry, qx, qy, backend="numpy"
+        )
+    assert np.all(np.isfinite(got))
+    np.testing.assert_array_equal(got, reference)
+    assert np.all(np.abs(got) <= len(qx) * np.abs(table).max())  # a sum of table cells
+
+
+@pytest.mark.skipif(raycast._jit() is None, reason="numba unavailable")
+def test_nan_endpoints_read_cell_zero_on_both_paths():
+    """The map-frame kernel too: NaN or infinite positions stay inside the table."""
+    table, uv, c, s, qx, qy = problem(6, seed=5)
+    uv[0, 0] = np.nan
+    uv[1, 1] = np.nan
+    uv[2] = [np.inf, -np.inf]
+    c[3] = np.nan
+    table[0, 0] = 1000.0
+    with np.errstate(all="ignore"):
+        compiled = fieldsum.table_sum(table, uv, c, s, qx, qy, backend="numba")
+        reference = fieldsum.table_sum(table, uv, c, s, qx, qy, backend="numpy")
+    np.testing.assert_array_equal(compiled, reference)
+    assert np.all(np.isfinite(compiled))
