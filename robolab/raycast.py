@@ -98,13 +98,21 @@ round-off, ~1e-13 cells):
   rays at once, with the Euclidean quadrant fields capped at :data:`_CAP` cells.
 
 ``import numba`` and loading the compiled kernels from numba's on-disk cache
-cost about a second, once per process, the first time a grid is cast on (the
-very first run after an install also compiles them, some seconds; later runs
-reuse the cache). :func:`warm_up` pays that cost up front. The environment
-variable ``ROBOLAB_RAYCAST=numpy`` forces the fallback (``=numba`` requires
-numba), read when the first caster is built. :func:`cast_rays_reference`
-always uses the numpy backend, for results that must be bit-for-bit the same
-on every install.
+cost about a second, once per process (the very first run after an install
+also compiles them, some seconds; later runs reuse the cache). So casters
+default to a third choice, ``"auto"``: the numpy path while the process's
+numpy casts have used at most ``_AUTO["budget"]`` (0.5 s) of CPU in all, about
+what loading numba costs, and the compiled one from then on, or at once for a
+cast whose estimated numpy time would exceed that budget (a ski-rental rule:
+a process never spends more than about twice what the better choice in
+hindsight would have cost). A short script or a lab that casts a few scans
+never imports numba (its first cast on the bundled maps: tens of
+milliseconds); a particle filter switches within its first steps.
+:func:`warm_up` pays the compiled path's cost up front (``"auto"`` then
+always takes it). ``ROBOLAB_RAYCAST=numpy`` forces the fallback, ``=numba``
+the compiled path (requires numba), ``=auto`` or unset the rule above; it is
+read when a caster is built. :func:`cast_rays_reference` always uses the numpy
+backend, for results that must be bit-for-bit the same on every install.
 
 References
 ----------
@@ -119,6 +127,7 @@ References
 from __future__ import annotations
 
 import os
+import time
 import warnings
 import weakref
 
@@ -137,9 +146,16 @@ __all__ = [
     "warm_up",
 ]
 
-BACKENDS = ("numba", "numpy")
+BACKENDS = ("numba", "numpy", "auto")
 # The compiled kernels module once imported (False: not tried yet, None: unavailable).
 _JIT = False
+# "auto" casters (module docstring, *Backends*): the numpy path while the process's
+# numpy casts stay within ``budget`` seconds of CPU in all (about what loading numba and
+# the cached kernels costs), the compiled one after that. A cast is sent to numba at once
+# when its estimated numpy time (rays x _NUMPY_SECONDS_PER_RAY) would exceed the budget.
+_AUTO = {"budget": 0.5, "numpy_seconds": 0.0}
+# The numpy path's CPU time per ray, a generous estimate (benchmarks/raycast.py: 0.2-0.4 us).
+_NUMPY_SECONDS_PER_RAY = 1e-6
 
 # Rays are processed in chunks of about this many: large enough that numpy's
 # per-call overhead (and the tail of slow rays) is amortized (measured: 16k-64k
@@ -207,42 +223,62 @@ class RayCaster:
     ----------
     grid : OccupancyGrid
         The map (immutable; :meth:`OccupancyGrid.with_data` makes a new one).
-    backend : {"numba", "numpy"}, optional
+    backend : {"numba", "numpy", "auto"}, optional
         Which implementation traces the rays (module docstring, *Backends*);
-        default :func:`default_backend`.
+        default ``"auto"``, unless ``ROBOLAB_RAYCAST`` says otherwise.
 
     Attributes
     ----------
     backend : str
-        The implementation in use.
+        The implementation in use (``"auto"``: chosen per cast, see ``last_path``).
     """
 
     def __init__(self, grid: OccupancyGrid, backend: str | None = None):
         if not isinstance(grid, OccupancyGrid):
             raise TypeError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
         if backend is None:
-            backend = default_backend()
+            backend = _new_caster_backend()
         elif backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         elif backend == "numba" and _jit() is None:
             raise ImportError("backend 'numba' needs numba (pip install numba)")
         self.grid = grid
         self.occupied = grid.occupied.copy()
-        h, w = self.occupied.shape
-        # One free cell of padding on every side: positions on the map boundary
-        # (and float round-off there) index the padding instead of wrapping.
-        occ = np.zeros((h + 2, w + 2), dtype=bool)
-        occ[1:-1, 1:-1] = self.occupied
-        self._shape = (h, w)
+        self._shape = self.occupied.shape
         self.backend = backend
-        if backend == "numba":
-            self._fields = _jit().quadrant_fields(occ)
-            return
-        # Quadrant q = [d_x < 0] + 2 [d_y < 0]: flip the map so that the ray goes up-right.
-        flips = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
-        fields = [_quadrant_field(occ[::fr, ::fc])[::fr, ::fc] for fr, fc in flips]
-        self._fields = np.stack(fields).ravel()
-        self._qstride = occ.size
+        #: The path of the last cast, "numba" or "numpy" (for an "auto" caster: the one chosen).
+        self.last_path = None
+        self._built = {}
+        if backend != "auto":
+            self._fields_for(backend)
+
+    def _fields_for(self, path: str):
+        """The jump fields of ``path`` ("numba" or "numpy"), built on first use."""
+        if path not in self._built:
+            h, w = self._shape
+            # One free cell of padding on every side: positions on the map boundary
+            # (and float round-off there) index the padding instead of wrapping.
+            occ = np.zeros((h + 2, w + 2), dtype=bool)
+            occ[1:-1, 1:-1] = self.occupied
+            if path == "numba":
+                self._built[path] = _jit().quadrant_fields(occ)
+            else:
+                # Quadrant q = [d_x < 0] + 2 [d_y < 0]: flip the map so that the ray goes up-right.
+                flips = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
+                fields = [_quadrant_field(occ[::fr, ::fc])[::fr, ::fc] for fr, fc in flips]
+                self._built[path] = np.stack(fields).ravel()
+                self._qstride = occ.size
+        return self._built[path]
+
+    def _path(self, n_rays: int) -> str:
+        """The path of a cast of ``n_rays`` rays (module docstring, *Backends*)."""
+        if self.backend != "auto":
+            return self.backend
+        if _JIT not in (False, None):
+            return "numba"  # loaded already: no reason left for the slower path
+        if _AUTO["numpy_seconds"] + n_rays * _NUMPY_SECONDS_PER_RAY <= _AUTO["budget"]:
+            return "numpy"
+        return "numba" if _jit() is not None else "numpy"
 
     def cast(self, poses, angles, max_range) -> np.ndarray:
         """Ranges for every pose and beam; see :func:`cast_rays` for the contract."""
@@ -258,8 +294,22 @@ class RayCaster:
         heading = poses[:, 2] - grid.origin[2]
         limit = max_range / res  # may overflow to inf (max_range ~ 1e308): no limit then
         h, w = self._shape
-        if self.backend == "numba":
-            return _jit().cast(self._fields, uv, heading, angles, limit, h, w, res, max_range)
+        path = self.last_path = self._path(n * b)
+        if path == "numba":
+            fields = self._fields_for("numba")
+            return _jit().cast(fields, uv, heading, angles, limit, h, w, res, max_range)
+        if self.backend == "auto":
+            start = time.process_time()
+            try:
+                return self._cast_numpy(uv, heading, angles, limit, res, max_range)
+            finally:
+                _AUTO["numpy_seconds"] += time.process_time() - start
+        return self._cast_numpy(uv, heading, angles, limit, res, max_range)
+
+    def _cast_numpy(self, uv, heading, angles, limit, res, max_range):
+        """The numpy path of :meth:`cast` (map coordinates in, metres out)."""
+        n, b = uv.shape[0], angles.shape[0]
+        self._fields_for("numpy")
         t = np.empty((n, b))
         # Chunk whole poses so that each chunk has about _CHUNK rays.
         per = max(1, _CHUNK // max(b, 1))
@@ -279,7 +329,7 @@ class RayCaster:
         """
         h, w = self._shape
         wp = float(w + 2)
-        fields = self._fields
+        fields = self._built["numpy"]
         result = np.full(u0.shape, -1.0)
 
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -423,11 +473,27 @@ def _jit():
     return _JIT
 
 
-def default_backend() -> str:
-    """The backend new casters use: ``"numba"`` when the compiled kernels load, else ``"numpy"``.
+def _new_caster_backend() -> str:
+    """The backend of ``RayCaster(grid)`` and :func:`cast_rays`: ``ROBOLAB_RAYCAST``'s choice.
 
-    ``ROBOLAB_RAYCAST`` (``numba`` or ``numpy``) overrides the choice; ``numba``
-    then raises ImportError when numba is not usable.
+    Unset or ``auto``: ``"auto"`` (``"numpy"`` once numba turned out unusable);
+    ``numba`` or ``numpy``: :func:`default_backend`.
+    """
+    choice = os.environ.get("ROBOLAB_RAYCAST", "").strip().lower()
+    if choice in ("numba", "numpy"):
+        return default_backend()
+    if choice not in ("", "auto"):
+        raise ValueError(f"ROBOLAB_RAYCAST must be one of {BACKENDS}, got {choice!r}")
+    return "numpy" if _JIT is None else "auto"  # None: numba was tried and is unusable
+
+
+def default_backend() -> str:
+    """``"numba"`` when the compiled kernels load (importing numba), else ``"numpy"``.
+
+    The compiled-or-not choice of :mod:`robolab.fieldsum` and of casters under
+    ``ROBOLAB_RAYCAST=numba`` or ``numpy`` (which overrides it; ``numba`` then raises
+    ImportError when numba is not usable). ``RayCaster(grid)`` and :func:`cast_rays`
+    otherwise use ``"auto"``, which imports numba only for work that needs it.
     """
     choice = os.environ.get("ROBOLAB_RAYCAST", "").strip().lower()
     if choice and choice not in BACKENDS:
