@@ -208,22 +208,22 @@ rng = np.random.default_rng(0)
 cells = np.argwhere(grid.free)[rng.integers(int(grid.free.sum()), size=int(sys.argv[2]))]
 poses = np.column_stack([grid.cell_to_world(cells), rng.uniform(-np.pi, np.pi, len(cells))])
 angles = np.linspace(-np.pi, np.pi, 60, endpoint=False)
-t1 = time.perf_counter()
+t1, c1 = time.perf_counter(), time.process_time()
 cast_rays(grid, poses, angles, float(sys.argv[3]))
-t2 = time.perf_counter()
-print(t1 - t0, t2 - t1, "numba" in sys.modules)
+t2, c2 = time.perf_counter(), time.process_time()
+print(t1 - t0, t2 - t1, c2 - c1, "numba" in sys.modules)
 """
 
 
-def first_cast(path: Path, n_poses: int, max_range: float) -> tuple[float, float, bool]:
-    """A fresh process's (import + load seconds, first ``cast_rays`` seconds, numba imported?).
+def first_cast(path: Path, n_poses: int, max_range: float) -> tuple[float, float, float, bool]:
+    """A fresh process's import + load, first ``cast_rays`` (wall, CPU) seconds, numba imported?
 
     The default ("auto") caster, ``ROBOLAB_RAYCAST`` removed from the child's environment.
     """
     env = {k: v for k, v in os.environ.items() if k != "ROBOLAB_RAYCAST"}
     args = [sys.executable, "-c", FIRST_CAST, str(path), str(n_poses), str(max_range)]
     out = subprocess.run(args, capture_output=True, text=True, check=True, env=env).stdout.split()
-    return float(out[0]), float(out[1]), out[2] == "True"
+    return float(out[0]), float(out[1]), float(out[2]), out[3] == "True"
 
 
 def cpu_hz() -> float:
@@ -243,11 +243,12 @@ def main() -> None:
     rlc = load_range_libc()
     # First the fresh processes (numba not loaded in them whatever this one does).
     firsts = {
-        name: first_cast(path, N_POSES, rng_m)
+        (name, n): first_cast(path, n, rng_m)
         for name, path, rng_m in [
             ("office", _data("office.yaml"), 10.0),
             ("maze", _data("maze.yaml"), 4.0),
         ]
+        for n in (1, N_POSES)
     }
     backend = raycast.warm_up()
     if backend != "numba":
@@ -268,10 +269,11 @@ def main() -> None:
     )
     print(f"before: {load0}")
     print(f"one-time start-up per process (import numba, load kernels): {startup_seconds():.2f} s")
-    for name, (setup, cast, numba_loaded) in firsts.items():
+    for (name, n), (setup, cast, cpu, numba_loaded) in firsts.items():
         print(
             f"fresh process, {name}: import + load map {setup:.3f} s, first cast_rays of "
-            f"{n_rays} rays {cast:.3f} s (numba imported: {numba_loaded})"
+            f"{n} x {N_BEAMS} rays {cast:.3f} s wall, {cpu:.3f} s CPU (numba imported: "
+            f"{numba_loaded})"
         )
     head = (
         f"{'map':<20} {'range':>5} | {'cold ms: ours':>13} {'CDDT':>6} {'ratio':>6} {'GLT':>5}"
