@@ -18,9 +18,17 @@ from robolab.maps import UNKNOWN, OccupancyGrid, load_map
 from robolab.raycast import RayCaster, cast_rays, castrays, castraysingle
 
 
-@pytest.fixture(autouse=True, params=raycast.BACKENDS)
+@pytest.fixture(autouse=True, params=[*raycast.BACKENDS, "octants"])
 def backend(request, monkeypatch):
-    """Run the test with casters of one backend (a fresh cache: no caster of the other leaks in)."""
+    """Run the test with casters of one backend (a fresh cache: no caster of the other leaks in).
+
+    ``octants``: the numba backend with octant fields on every map (else only on large
+    sparse ones); the test sees ``"numba"``.
+    """
+    if request.param == "octants":
+        monkeypatch.setattr(raycast, "_OCTANT_MIN_CELLS", 0)
+        monkeypatch.setattr(raycast, "_OCTANT_MAX_OCCUPIED", 1.0)
+        request = type("Param", (), {"param": "numba"})()
     if request.param != "numpy" and raycast._jit() is None:
         if importlib.util.find_spec("numba") is not None:
             pytest.fail("numba is installed but the compiled ray caster did not load (see warning)")
@@ -562,6 +570,50 @@ def test_chessboard_quadrant_fields_match_brute_force(seed):
                 # and within one code step of it up to FIELD_MAX
                 assert got <= d, (q, r, c)
                 assert got == d if d < 128 else got > min(d, FIELD_MAX) - step, (q, r, c)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_octant_fields_match_brute_force(seed, backend):
+    if backend != "numba":
+        pytest.skip("the compiled fields: once per numba run")
+    from robolab._raycast_jit import DECODE, FIELD_MAX, octant_fields
+
+    rng = np.random.default_rng(seed)
+    shape = (19, 27) if seed else (150, 290)
+    occ = rng.random(shape) < (rng.uniform(0.01, 0.15) if seed else 2e-4)
+    fields = octant_fields(occ)
+    assert fields.shape == (8, *occ.shape) and fields.dtype == np.uint8
+    rr, cc = np.nonzero(occ)
+    step = int(np.diff(DECODE[-2:])[0])
+    for q in range(8):
+        sx, sy, steep = (-1 if q & 1 else 1), (-1 if q & 2 else 1), q >= 4
+        for r in range(0, occ.shape[0], 1 if seed else 7):
+            for c in range(0, occ.shape[1], 1 if seed else 5):
+                a, b = sy * (rr - r), sx * (cc - c)  # rows and columns ahead
+                if steep:
+                    a, b = b, a
+                wedge = (b >= 0) & (a >= 0) & (a <= b + 1)
+                e = b[wedge].min() if wedge.any() else np.inf
+                quad = (a >= 0) & (b >= 0)
+                d = np.maximum(a[quad], b[quad]).min() if quad.any() else np.inf
+                want = max(e, d - 1, 1)
+                got = DECODE[fields[q, r, c]]
+                assert (got == 0) == bool(occ[r, c]), (q, r, c)
+                if occ[r, c]:
+                    continue
+                assert got <= want, (q, r, c)
+                assert got == want if want < 128 else got > min(want, FIELD_MAX) - step, (q, r, c)
+
+
+def test_octants_are_chosen_for_large_sparse_maps_only(backend):
+    if backend != "numba" or raycast._OCTANT_MIN_CELLS == 0:
+        pytest.skip("the rule itself: once, unpatched")
+    sparse = np.zeros((800, 700), bool)
+    sparse[::97, 5:60] = True
+    assert raycast._use_octants(sparse)
+    assert not raycast._use_octants(sparse[:300])  # small: quadrant fields fit in cache
+    cluttered = np.random.default_rng(0).random((800, 700)) < 0.2
+    assert not raycast._use_octants(cluttered)
 
 
 def test_huge_max_range_is_returned_not_inf():
