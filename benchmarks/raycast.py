@@ -365,7 +365,7 @@ def print_step_costs(costs, angles, hz) -> None:
         n, b = uv.shape[0], angles.shape[0]
         ca, sa, ch, sh = np.cos(angles), np.sin(angles), np.cos(heading), np.sin(heading)
         flat, plane, wp = fields.ravel(), fields.shape[1] * fields.shape[2], fields.shape[2]
-        geometry = (n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat)
+        geometry = (n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat, fields.shape[0] == 8)
         steps = 0
         for i in range(n):
             for j in range(b):

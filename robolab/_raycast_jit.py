@@ -125,19 +125,18 @@ def octant_fields(occ):  # pragma: no cover - compiled (run through the tests)
     octant. A ray in cell ``(r, c)`` crosses column ``c + sx E`` no earlier than
     ``t_x + (E - 1) / |d_x|`` (``t_x``: when it leaves its cell's column), so no
     obstacle is entered before then: the jump of :func:`_step` with ``s = E`` (whose
-    ``min`` with the row bound only shortens it). ``E`` is limited only by the obstacles
-    of a 45 degree wedge, the chessboard distance ``D`` of :func:`quadrant_fields` by
-    those of the 90 degree quadrant, but ``E`` drops to 0 next to an obstacle the ray
-    will pass far from (one in the cell beside it across the row). Both bounds hold, so
-    the field stores ``s = max(E, D - 1)``: a shallow ray leaves the empty square of
-    side ``D`` no earlier than ``t_x + (D - 2) / |d_x|`` (its row exit ``t_y`` is at most
-    one column's time ``1 / |d_x|`` before ``t_x``, and ``|d_y| <= |d_x|``), the jump
-    with ``s = D - 1``. ``D`` is computed in the same pass (the quadrant's recurrence).
+    ``min`` with the row bound only shortens it). The quadrant's chessboard distance
+    ``D`` (:func:`quadrant_fields`, computed in the same pass) bounds the same jump
+    formula safely too, and the formula grows with ``s``, so the field stores
+    ``s = max(E, D)``: ``E`` is limited only by the obstacles of a 45 degree wedge,
+    ``D`` by those of the 90 degree quadrant but it lets a ray advance along both axes
+    (``E`` is 0 or 1 next to an obstacle in the column beside the ray, where ``D`` may
+    still allow a short jump).
 
     Returns
     -------
     numpy.ndarray of uint8, shape (8, H, W)
-        0 on obstacles, else the code (:data:`DECODE`) of ``max(E_q, D_q - 1, 1)``
+        0 on obstacles, else the code (:data:`DECODE`) of ``max(E_q, D_q, 1)``
         (1: an exact step).
     """
     h, w = occ.shape
@@ -173,7 +172,7 @@ def octant_fields(occ):  # pragma: no cover - compiled (run through the tests)
                 if occ[r, c]:
                     out[q, r, c] = 0
                 else:
-                    out[q, r, c] = encode(max(cur[c], dcur[c] - 1, 1))
+                    out[q, r, c] = encode(max(cur[c], dcur[c], 1))
             prev, cur = cur, prev
             dprev, dcur = dcur, dprev
     return out
