@@ -93,7 +93,10 @@ round-off, ~1e-13 cells):
   columns or rows than the current cell's exit,
   ``min(t_x + (D_q - 1) / |d_x|, t_y + (D_q - 1) / |d_y|)``: along an axis a jump
   reaches the nearest obstacle ahead exactly, on a diagonal ``sqrt 2`` times
-  further than the Euclidean field above. ``D_q = 1`` is an exact step.
+  further than the Euclidean field above. ``D_q = 1`` is an exact step. On large
+  sparse maps (:func:`_use_octants`) eight octant fields replace the four, with
+  the same step (:func:`robolab._raycast_jit.octant_fields`: a 45-degree wedge
+  instead of a quadrant limits each jump).
 * ``"numpy"`` (the fallback): the lock-step loop described above, over all
   rays at once, with the Euclidean quadrant fields capped at :data:`_CAP` cells.
 
