@@ -1,17 +1,20 @@
-"""Benchmark of robolab.raycast.cast_rays against range_libc's CDDT, on one core.
+"""Benchmark of robolab.raycast.cast_rays against range_libc's CDDT and GLT, on one core.
 
 Run: ``python benchmarks/raycast.py`` (``RANGE_LIBC_PATH=<folder of range_libc's
-built Python module>`` adds the CDDT column; without it that column is skipped).
+built Python module>`` adds the CDDT and GLT columns; without it they are skipped,
+set but not importable it fails; a missing ../shared/data or numba fails too).
 range_libc is not part of robolab: ../shared/perf/RANGE_LIBC.md says how to
 build it outside the repository.
 
-Four workloads, 1000 poses in free space x 60 beams each (fixed seeds):
+Five workloads, 1000 poses in free space x 60 beams each (fixed seeds):
 
 * the office map (``data/office.yaml``, 260 x 420 cells of 0.05 m), range 10 m;
 * the bundled maze (203 x 203 cells of 0.05 m), range 4 m;
 * a real map: ``../shared/data/olin_ac109_1`` (1088 x 1088 cells of 0.02 m,
-  mostly unknown space that rays cross), range 20 m = 1000 cells (skipped when
-  the folder is absent);
+  mostly unknown space that rays cross), range 20 m = 1000 cells (the benchmark
+  fails when the folder is absent);
+* :func:`sparse_unknown_grid`: 1056 x 992 cells of 0.02 m, 97 % unknown, sparse
+  broken walls (like the held-out Olin map of issue 29), range 20 m;
 * a 2000 x 2000 cell map (0.05 m cells) with 3000 random boxes of 2-30 cells a
   side (about 16 % occupied), range 10 m.
 
@@ -26,14 +29,21 @@ lies between the two: other work runs between its casts.
 * ``cast_rays`` with the compiled kernel (backend ``numba``), the default;
 * the same with the numpy fallback (backend ``numpy``);
 * range_libc's CDDT (``PyCDDTCast``, 108 angle bins as in range_libc's
-  test.py), ``calc_range_repeat_angles``, clipped to the range.
+  test.py), ``calc_range_repeat_angles``, clipped to the range;
+* range_libc's giant lookup table (``PyGiantLUTCast``, same bins) on the two
+  small maps (its table is cells x 108 x 2 bytes).
 
-Ratios are CDDT's time over the compiled kernel's (> 1: ours is faster). The first-call build
-(the jump fields of one grid; CDDT's compressed table) is timed the same way.
+Ratios are CDDT's (GLT's) time over the compiled kernel's (> 1: ours is faster).
+The first-call build (the jump fields of one grid; CDDT's compressed table) is
+timed the same way.
 The compiled kernel's one-time start-up per process (``import numba`` and
 loading the kernels from numba's cache) is measured in a child process and
-printed separately. Exactness: every range of both backends is checked
-against a plain per-ray Python Amanatides-Woo loop on a subset of rays, and
+printed separately, and so is a fresh process's first ``cast_rays`` on the
+bundled maps with the default ("auto") caster. Per map, iterations per ray
+(counted) and cycles per iteration at the clock of /proc/cpuinfo are printed
+beside the floor of a random read in an array the fields' size. Exactness:
+every range of both backends is checked against a plain per-ray Python
+Amanatides-Woo loop on a subset of rays, and
 CDDT's error is reported as the share of rays more than one cell off.
 The machine's load average is printed before and after (the host is shared).
 """
