@@ -104,6 +104,80 @@ def quadrant_fields(occ):  # pragma: no cover - compiled (run through the tests)
     return out
 
 
+@njit(cache=True, nogil=True)
+def octant_fields(occ):  # pragma: no cover - compiled (run through the tests)
+    """Column (or row) distances to the nearest obstacle a ray of each direction octant can reach.
+
+    ``occ`` is the padded obstacle mask, shape ``(H, W)``. Octant
+    ``q = [d_x < 0] + 2 [d_y < 0] + 4 [|d_y| > |d_x|]``, with ``sx, sy`` the signs of
+    ``d``. From any point of cell ``(r, c)``, a *shallow* ray (``|d_y| <= |d_x|``) only
+    reaches cells ``(r + sy a, c + sx b)`` of the wedge ``b >= 0, 0 <= a <= b + 1``
+    (``|y - y_0| <= |x - x_0|`` along the ray, and the start lies within one cell), and
+
+    ``E_q(r, c) = min b`` over the obstacle cells of that wedge,
+
+    the number of whole columns between the cell and the first obstacle column the ray
+    can meet; a steep ray the same with rows and columns swapped. The wedge of a cell is
+    its own column's two cells ``(r, c), (r + sy, c)`` plus the wedges of ``(r, c + sx)``
+    and ``(r + sy, c + sx)``, hence the recurrence ``E(r, c) = 0`` when one of those two
+    cells is an obstacle, else ``1 + min(E(r, c + sx), E(r + sy, c + sx))`` (steep:
+    ``(r, c), (r, c + sx)`` and ``(r + sy, c), (r + sy, c + sx)``), one raster pass per
+    octant. A ray in cell ``(r, c)`` crosses column ``c + sx E`` no earlier than
+    ``t_x + (E - 1) / |d_x|`` (``t_x``: when it leaves its cell's column), so no
+    obstacle is entered before then: the jump of :func:`_step` with ``s = E`` (whose
+    ``min`` with the row bound only shortens it). The quadrant's chessboard distance
+    ``D`` (:func:`quadrant_fields`, computed in the same pass) bounds the same jump
+    formula safely too, and the formula grows with ``s``, so the field stores
+    ``s = max(E, D)``: ``E`` is limited only by the obstacles of a 45 degree wedge,
+    ``D`` by those of the 90 degree quadrant but it lets a ray advance along both axes
+    (``E`` is 0 or 1 next to an obstacle in the column beside the ray, where ``D`` may
+    still allow a short jump).
+
+    Returns
+    -------
+    numpy.ndarray of uint8, shape (8, H, W)
+        0 on obstacles, else the code (:data:`DECODE`) of ``max(E_q, D_q, 1)``
+        (1: an exact step).
+    """
+    h, w = occ.shape
+    out = np.empty((8, h, w), np.uint8)
+    big = 1 << 30
+    prev = np.empty(w, np.int64)
+    cur = np.empty(w, np.int64)
+    dprev = np.empty(w, np.int64)
+    dcur = np.empty(w, np.int64)
+    for q in range(8):
+        sx = -1 if q & 1 else 1
+        sy = -1 if q & 2 else 1
+        steep = q >= 4
+        r0, r1 = (h - 1, -1) if sy > 0 else (0, h)
+        c0, c1 = (w - 1, -1) if sx > 0 else (0, w)
+        prev[:] = big  # the row beyond the map: free
+        dprev[:] = big
+        for r in range(r0, r1, -sy):
+            rn = r + sy
+            for c in range(c0, c1, -sx):
+                cn = c + sx
+                inside = 0 <= cn < w
+                if steep:
+                    blocked = occ[r, c] or (inside and occ[r, cn])
+                    m = min(prev[c], prev[cn]) if inside else prev[c]
+                else:
+                    blocked = occ[r, c] or (0 <= rn < h and occ[rn, c])
+                    m = min(cur[cn], prev[cn]) if inside else big
+                cur[c] = 0 if blocked else min(m, big - 1) + 1
+                # the quadrant's chessboard distance D (quadrant_fields' recurrence)
+                dm = min(dprev[c], dcur[cn], dprev[cn]) if inside else dprev[c]
+                dcur[c] = 0 if occ[r, c] else min(dm, big - 1) + 1
+                if occ[r, c]:
+                    out[q, r, c] = 0
+                else:
+                    out[q, r, c] = encode(max(cur[c], dcur[c], 1))
+            prev, cur = cur, prev
+            dprev, dcur = dcur, dprev
+    return out
+
+
 #: Rays traced together, each in registers: their field look-ups are independent,
 #: so the processor overlaps their latencies (one ray alone is a chain of
 #: dependent loads). Six lanes, written out in :func:`cast`: on benchmarks/raycast.py
@@ -141,8 +215,9 @@ def cast(fields, uv, heading, angles, limit, h, w, res, zmax):  # pragma: no cov
 
     Parameters
     ----------
-    fields : uint8 array, shape (4, h + 2, w + 2)
-        :func:`quadrant_fields` of the map padded by one free cell on every side.
+    fields : uint8 array, shape (4, h + 2, w + 2) or (8, h + 2, w + 2)
+        :func:`quadrant_fields` or :func:`octant_fields` of the map padded by one free
+        cell on every side (the step is the same for both).
     uv : float array, shape (N, 2)
         Ray origins in continuous map coordinates (cells, unpadded).
     heading : float array, shape (N,)
@@ -170,7 +245,8 @@ def cast(fields, uv, heading, angles, limit, h, w, res, zmax):  # pragma: no cov
     flat = fields.ravel()
     plane = fields.shape[1] * fields.shape[2]
     wp = fields.shape[2]
-    geometry = (n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat)
+    octants = fields.shape[0] == 8
+    geometry = (n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat, octants)
     # One state tuple per lane (see _start); a lane whose ray index is `total` is idle.
     # The lanes are spelled out, not an array of states nor a helper per lane: that way
     # they stay in registers (measured: the array form 1.2-1.4x slower, numba-inlined
@@ -262,7 +338,7 @@ def _start(i, j, geometry):  # pragma: no cover - compiled
     case, a ray that starts at ``t = 0`` in its pose's cell (the general one,
     with slab tests against the map, is :func:`_start_off_map`).
     """
-    n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat = geometry
+    n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat, octants = geometry
     while i < n:
         u0, v0 = uv[i, 0], uv[i, 1]
         if not _on_map(u0, v0, h, w):
@@ -284,7 +360,7 @@ def _start(i, j, geometry):  # pragma: no cover - compiled
             continue
         # padded coordinates: cell (0, 0) of the map is (1, 1)
         ci, ri = int(u0) + 1, int(v0) + 1
-        state = _state(m, 0.0, t_end, ci, ri, u0 + 1.0, v0 + 1.0, dx, dy, idx, idy, plane)
+        state = _state(m, 0.0, t_end, ci, ri, u0 + 1.0, v0 + 1.0, dx, dy, idx, idy, plane, octants)
         _prefetch(flat, state[5] + ri * wp + ci)
         return state, i, j
     idle = (n * b, 0.0, 0.0, 1, 1, 0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 1.0)
@@ -297,7 +373,7 @@ def _start_off_map(i, j, geometry):  # pragma: no cover - compiled
 
     ``enters`` is False for a ray that misses the map (it keeps ``zmax``).
     """
-    n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat = geometry
+    n, b, uv, ch, sh, ca, sa, limit, h, w, plane, wp, flat, octants = geometry
     u0, v0 = uv[i, 0], uv[i, 1]
     dx = ch[i] * ca[j] - sh[i] * sa[j]
     dy = sh[i] * ca[j] + ch[i] * sa[j]
@@ -314,13 +390,18 @@ def _start_off_map(i, j, geometry):  # pragma: no cover - compiled
         t = 0.0  # (the state is not traced)
     ci = int(min(max(math.floor(u0 + t * dx), 1.0), float(w)))
     ri = int(min(max(math.floor(v0 + t * dy), 1.0), float(h)))
-    return _state(i * b + j, t, t_end, ci, ri, u0, v0, dx, dy, idx, idy, plane), enters
+    state = _state(i * b + j, t, t_end, ci, ri, u0, v0, dx, dy, idx, idy, plane, octants)
+    return state, enters
 
 
 @njit(nogil=True)
-def _state(m, t, t_end, ci, ri, u0, v0, dx, dy, idx, idy, plane):  # pragma: no cover
-    """A lane's state (:func:`_start`) for ray ``m`` at ``t`` in padded cell ``(ci, ri)``."""
-    koff = ((1 if dx < 0 else 0) + (2 if dy < 0 else 0)) * plane
+def _state(m, t, t_end, ci, ri, u0, v0, dx, dy, idx, idy, plane, octants):  # pragma: no cover
+    """A lane's state (:func:`_start`) for ray ``m`` at ``t`` in padded cell ``(ci, ri)``.
+
+    ``octants``: the fields are :func:`octant_fields` (else :func:`quadrant_fields`).
+    """
+    q = (1 if dx < 0 else 0) + (2 if dy < 0 else 0)
+    koff = (q + (4 if octants and abs(dy) > abs(dx) else 0)) * plane
     ax = (1.0 if dx >= 0 else 0.0) - u0
     ay = (1.0 if dy >= 0 else 0.0) - v0
     return (m, t, t_end, ci, ri, koff, ax, ay, idx, idy, u0, v0, dx, dy)

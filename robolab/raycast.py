@@ -93,18 +93,29 @@ round-off, ~1e-13 cells):
   columns or rows than the current cell's exit,
   ``min(t_x + (D_q - 1) / |d_x|, t_y + (D_q - 1) / |d_y|)``: along an axis a jump
   reaches the nearest obstacle ahead exactly, on a diagonal ``sqrt 2`` times
-  further than the Euclidean field above. ``D_q = 1`` is an exact step.
+  further than the Euclidean field above. ``D_q = 1`` is an exact step. On large
+  sparse maps (:func:`_use_octants`) eight octant fields replace the four, with
+  the same step (:func:`robolab._raycast_jit.octant_fields`: a 45-degree wedge
+  instead of a quadrant limits each jump).
 * ``"numpy"`` (the fallback): the lock-step loop described above, over all
   rays at once, with the Euclidean quadrant fields capped at :data:`_CAP` cells.
 
 ``import numba`` and loading the compiled kernels from numba's on-disk cache
-cost about a second, once per process, the first time a grid is cast on (the
-very first run after an install also compiles them, some seconds; later runs
-reuse the cache). :func:`warm_up` pays that cost up front. The environment
-variable ``ROBOLAB_RAYCAST=numpy`` forces the fallback (``=numba`` requires
-numba), read when the first caster is built. :func:`cast_rays_reference`
-always uses the numpy backend, for results that must be bit-for-bit the same
-on every install.
+cost about a second, once per process (the very first run after an install
+also compiles them, some seconds; later runs reuse the cache). So casters
+default to a third choice, ``"auto"``: the numpy path while the process's
+numpy casts have used at most ``_AUTO["budget"]`` (0.5 s) of CPU in all, about
+what loading numba costs, and the compiled one from then on, or at once for a
+cast whose estimated numpy time would exceed that budget (a ski-rental rule:
+a process never spends more than about twice what the better choice in
+hindsight would have cost). A short script or a lab that casts a few scans
+never imports numba (its first cast on the bundled maps: tens of
+milliseconds); a particle filter switches within its first steps.
+:func:`warm_up` pays the compiled path's cost up front (``"auto"`` then
+always takes it). ``ROBOLAB_RAYCAST=numpy`` forces the fallback, ``=numba``
+the compiled path (requires numba), ``=auto`` or unset the rule above; it is
+read when a caster is built. :func:`cast_rays_reference` always uses the numpy
+backend, for results that must be bit-for-bit the same on every install.
 
 References
 ----------
@@ -119,11 +130,14 @@ References
 from __future__ import annotations
 
 import os
+import time
 import warnings
 import weakref
 
 import numpy as np
 
+# the numpy path's Euclidean quadrant fields (capped at _CAP cells, one byte a cell)
+from robolab._raycast_fields import _CAP, _LUT, _OBSTACLE, _quadrant_field  # noqa: F401
 from robolab.maps import OccupancyGrid
 from robolab.validation import as_array, as_poses, check_positive
 
@@ -137,10 +151,20 @@ __all__ = [
     "warm_up",
 ]
 
-BACKENDS = ("numba", "numpy")
+BACKENDS = ("numba", "numpy", "auto")
 # The compiled kernels module once imported (False: not tried yet, None: unavailable).
 _JIT = False
+# "auto" casters (module docstring, *Backends*): the numpy path while the process's
+# numpy casts stay within ``budget`` seconds of CPU in all (about what loading numba and
+# the cached kernels costs), the compiled one after that. A cast is sent to numba at once
+# when its estimated numpy time (rays x _NUMPY_SECONDS_PER_RAY) would exceed the budget.
+_AUTO = {"budget": 0.5, "numpy_seconds": 0.0}
+# The numpy path's CPU time per ray, a generous estimate (benchmarks/raycast.py: 0.2-0.4 us).
+_NUMPY_SECONDS_PER_RAY = 1e-6
 
+# Octant fields for maps of at least this many cells with at most this share occupied.
+_OCTANT_MIN_CELLS = 1 << 19
+_OCTANT_MAX_OCCUPIED = 0.05
 # Rays are processed in chunks of about this many: large enough that numpy's
 # per-call overhead (and the tail of slow rays) is amortized (measured: 16k-64k
 # rays are equally fast, smaller chunks lose to the per-call overhead).
@@ -151,50 +175,17 @@ _U0, _V0, _DX, _DY, _IDX, _IDY, _AX, _AY, _SX, _SY, _T, _TEND, _C, _R, _ROW, _KO
 _NSTATE = 16
 # Compact the live rays once more than this fraction of them has finished.
 _COMPACT = 0.25
-# Jumps are capped at this many cells (the cost of building the fields grows with it).
-_CAP = 63
-# Field codes (uint8): quarter cells 0..4 * _CAP, and _OBSTACLE. _LUT maps a
-# code to the jump in cells, and an obstacle to -2 (tested as s < -1).
-_OBSTACLE = 255
-_LUT = np.arange(256) / 4.0
-_LUT[_OBSTACLE] = -2.0
 
 
-def _quadrant_field(occ: np.ndarray, cap: int = _CAP) -> np.ndarray:
-    """Jump codes for rays going up and right (``d_x >= 0``, ``d_y >= 0``).
+def _use_octants(occupied: np.ndarray) -> bool:
+    """Whether the compiled path uses octant fields (else quadrant ones) on this map.
 
-    ``floor(4 * min(s, cap))`` as uint8, where ``s(r, c)`` is the smallest
-    ``hypot(max(r' - r - 1, 0), max(c' - c - 1, 0))`` over obstacles ``occ[r', c']``
-    with ``r' >= r`` and ``c' >= c`` (the distance between the two cell squares).
-    The other quadrants are this on the flipped map. Exact integer arithmetic:
-    squared distances are small integers, and ``floor(sqrt(m))`` of an integer
-    ``m < 2**52`` computed with the correctly rounded float sqrt is exact.
+    Octant fields (8 bytes a cell) shorten the jumps of long rays past sparse
+    obstacles (benchmarks/raycast.py: 1.1-1.3x on a 2 cm map 97 % unknown), but
+    take twice the memory: on maps whose quadrant fields fit in the core's cache
+    (the bundled ones) and on cluttered ones they were 10-25 % slower.
     """
-    h, w = occ.shape
-    col = np.arange(w, dtype=np.int32)
-    # g: free cells between c and the next obstacle at column >= c in the row (capped).
-    nxt = np.minimum.accumulate(np.where(occ, col, np.int32(w + cap + 1))[:, ::-1], axis=1)[:, ::-1]
-    g = np.clip(nxt - col - 1, 0, cap).astype(np.int16)
-    g *= g  # <= cap**2
-    s2 = g.copy()
-    # s2(r) = min(g(r), min_{k >= 0} k**2 + g(r + 1 + k)): the row term max(r' - r - 1, 0)
-    # is 0 for r' = r and r' = r + 1, then k for r' = r + 1 + k. Column strips stay
-    # in cache and stop early once k**2 exceeds every value (<= cap**2) in the strip.
-    strip = 256
-    tmp = np.empty((h, strip), np.int16)
-    for c0 in range(0, w, strip):
-        gs = np.ascontiguousarray(g[:, c0 : c0 + strip])
-        ss = s2[:, c0 : c0 + strip]
-        k = 0
-        while k < h - 1 and k * k < int(ss.max()):
-            n = h - 1 - k
-            t = tmp[:n, : gs.shape[1]]
-            np.add(gs[1 + k :], np.int16(k * k), out=t)  # <= 2 cap**2 < 2**15
-            np.minimum(ss[:n], t, out=ss[:n])
-            k += 1
-    code = np.floor(np.sqrt(16.0 * s2)).astype(np.uint8)  # floor(4 s) <= 4 cap < 255
-    code[occ] = _OBSTACLE
-    return code
+    return occupied.size >= _OCTANT_MIN_CELLS and occupied.mean() <= _OCTANT_MAX_OCCUPIED
 
 
 class RayCaster:
@@ -207,42 +198,64 @@ class RayCaster:
     ----------
     grid : OccupancyGrid
         The map (immutable; :meth:`OccupancyGrid.with_data` makes a new one).
-    backend : {"numba", "numpy"}, optional
+    backend : {"numba", "numpy", "auto"}, optional
         Which implementation traces the rays (module docstring, *Backends*);
-        default :func:`default_backend`.
+        default ``"auto"``, unless ``ROBOLAB_RAYCAST`` says otherwise.
 
     Attributes
     ----------
     backend : str
-        The implementation in use.
+        The implementation in use (``"auto"``: chosen per cast, see ``last_path``).
     """
 
     def __init__(self, grid: OccupancyGrid, backend: str | None = None):
         if not isinstance(grid, OccupancyGrid):
             raise TypeError(f"grid must be an OccupancyGrid, got {type(grid).__name__}")
         if backend is None:
-            backend = default_backend()
+            backend = _new_caster_backend()
         elif backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         elif backend == "numba" and _jit() is None:
             raise ImportError("backend 'numba' needs numba (pip install numba)")
         self.grid = grid
         self.occupied = grid.occupied.copy()
-        h, w = self.occupied.shape
-        # One free cell of padding on every side: positions on the map boundary
-        # (and float round-off there) index the padding instead of wrapping.
-        occ = np.zeros((h + 2, w + 2), dtype=bool)
-        occ[1:-1, 1:-1] = self.occupied
-        self._shape = (h, w)
+        self._shape = self.occupied.shape
         self.backend = backend
-        if backend == "numba":
-            self._fields = _jit().quadrant_fields(occ)
-            return
-        # Quadrant q = [d_x < 0] + 2 [d_y < 0]: flip the map so that the ray goes up-right.
-        flips = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
-        fields = [_quadrant_field(occ[::fr, ::fc])[::fr, ::fc] for fr, fc in flips]
-        self._fields = np.stack(fields).ravel()
-        self._qstride = occ.size
+        #: The path of the last cast, "numba" or "numpy" (for an "auto" caster: the one chosen).
+        self.last_path = None
+        self._built = {}
+        if backend != "auto":
+            self._fields_for(backend)
+
+    def _fields_for(self, path: str):
+        """The jump fields of ``path`` ("numba" or "numpy"), built on first use."""
+        if path not in self._built:
+            h, w = self._shape
+            # One free cell of padding on every side: positions on the map boundary
+            # (and float round-off there) index the padding instead of wrapping.
+            occ = np.zeros((h + 2, w + 2), dtype=bool)
+            occ[1:-1, 1:-1] = self.occupied
+            if path == "numba":
+                octants = _use_octants(self.occupied)
+                fields = _jit().octant_fields if octants else _jit().quadrant_fields
+                self._built[path] = fields(occ)
+            else:
+                # Quadrant q = [d_x < 0] + 2 [d_y < 0]: flip the map so that the ray goes up-right.
+                flips = [(1, 1), (1, -1), (-1, 1), (-1, -1)]
+                fields = [_quadrant_field(occ[::fr, ::fc])[::fr, ::fc] for fr, fc in flips]
+                self._built[path] = np.stack(fields).ravel()
+                self._qstride = occ.size
+        return self._built[path]
+
+    def _path(self, n_rays: int) -> str:
+        """The path of a cast of ``n_rays`` rays (module docstring, *Backends*)."""
+        if self.backend != "auto":
+            return self.backend
+        if _JIT not in (False, None):
+            return "numba"  # loaded already: no reason left for the slower path
+        if _AUTO["numpy_seconds"] + n_rays * _NUMPY_SECONDS_PER_RAY <= _AUTO["budget"]:
+            return "numpy"
+        return "numba" if _jit() is not None else "numpy"
 
     def cast(self, poses, angles, max_range) -> np.ndarray:
         """Ranges for every pose and beam; see :func:`cast_rays` for the contract."""
@@ -258,8 +271,22 @@ class RayCaster:
         heading = poses[:, 2] - grid.origin[2]
         limit = max_range / res  # may overflow to inf (max_range ~ 1e308): no limit then
         h, w = self._shape
-        if self.backend == "numba":
-            return _jit().cast(self._fields, uv, heading, angles, limit, h, w, res, max_range)
+        path = self.last_path = self._path(n * b)
+        if path == "numba":
+            fields = self._fields_for("numba")
+            return _jit().cast(fields, uv, heading, angles, limit, h, w, res, max_range)
+        if self.backend == "auto":
+            start = time.process_time()
+            try:
+                return self._cast_numpy(uv, heading, angles, limit, res, max_range)
+            finally:
+                _AUTO["numpy_seconds"] += time.process_time() - start
+        return self._cast_numpy(uv, heading, angles, limit, res, max_range)
+
+    def _cast_numpy(self, uv, heading, angles, limit, res, max_range):
+        """The numpy path of :meth:`cast` (map coordinates in, metres out)."""
+        n, b = uv.shape[0], angles.shape[0]
+        self._fields_for("numpy")
         t = np.empty((n, b))
         # Chunk whole poses so that each chunk has about _CHUNK rays.
         per = max(1, _CHUNK // max(b, 1))
@@ -279,7 +306,7 @@ class RayCaster:
         """
         h, w = self._shape
         wp = float(w + 2)
-        fields = self._fields
+        fields = self._built["numpy"]
         result = np.full(u0.shape, -1.0)
 
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -411,6 +438,7 @@ def _jit():
                 # compile (or load from numba's cache) both kernels now, on a tiny map,
                 # so that a broken numba install falls back here and not mid-cast
                 tiny = _raycast_jit.quadrant_fields(np.zeros((3, 3), dtype=bool))
+                _raycast_jit.octant_fields(np.zeros((3, 3), dtype=bool))
                 one = np.ones((1, 2)), np.zeros(1), np.zeros(1)
                 _raycast_jit.cast(tiny, *one, 1.0, 1, 1, 1.0, 1.0)
                 _JIT = _raycast_jit
@@ -423,11 +451,27 @@ def _jit():
     return _JIT
 
 
-def default_backend() -> str:
-    """The backend new casters use: ``"numba"`` when the compiled kernels load, else ``"numpy"``.
+def _new_caster_backend() -> str:
+    """The backend of ``RayCaster(grid)`` and :func:`cast_rays`: ``ROBOLAB_RAYCAST``'s choice.
 
-    ``ROBOLAB_RAYCAST`` (``numba`` or ``numpy``) overrides the choice; ``numba``
-    then raises ImportError when numba is not usable.
+    Unset or ``auto``: ``"auto"`` (``"numpy"`` once numba turned out unusable);
+    ``numba`` or ``numpy``: :func:`default_backend`.
+    """
+    choice = os.environ.get("ROBOLAB_RAYCAST", "").strip().lower()
+    if choice in ("numba", "numpy"):
+        return default_backend()
+    if choice not in ("", "auto"):
+        raise ValueError(f"ROBOLAB_RAYCAST must be one of {BACKENDS}, got {choice!r}")
+    return "numpy" if _JIT is None else "auto"  # None: numba was tried and is unusable
+
+
+def default_backend() -> str:
+    """``"numba"`` when the compiled kernels load (importing numba), else ``"numpy"``.
+
+    The compiled-or-not choice of :mod:`robolab.fieldsum` and of casters under
+    ``ROBOLAB_RAYCAST=numba`` or ``numpy`` (which overrides it; ``numba`` then raises
+    ImportError when numba is not usable). ``RayCaster(grid)`` and :func:`cast_rays`
+    otherwise use ``"auto"``, which imports numba only for work that needs it.
     """
     choice = os.environ.get("ROBOLAB_RAYCAST", "").strip().lower()
     if choice and choice not in BACKENDS:

@@ -1,7 +1,8 @@
 """Tests of robolab.raycast: analytic cases, a brute-force oracle, the lab API, bad input.
 
-Every test runs once per backend (the compiled numba kernel and the numpy
-fallback), through the ``backend`` fixture.
+Every test runs once per backend (the compiled numba kernel, the numpy
+fallback, and an "auto" caster on its numpy path for small work before numba
+is loaded), through the ``backend`` fixture.
 """
 
 from __future__ import annotations
@@ -17,13 +18,25 @@ from robolab.maps import UNKNOWN, OccupancyGrid, load_map
 from robolab.raycast import RayCaster, cast_rays, castrays, castraysingle
 
 
-@pytest.fixture(autouse=True, params=raycast.BACKENDS)
+@pytest.fixture(autouse=True, params=[*raycast.BACKENDS, "octants"])
 def backend(request, monkeypatch):
-    """Run the test with casters of one backend (a fresh cache: no caster of the other leaks in)."""
-    if request.param == "numba" and raycast._jit() is None:
+    """Run the test with casters of one backend (a fresh cache: no caster of the other leaks in).
+
+    ``octants``: the numba backend with octant fields on every map (else only on large
+    sparse ones); the test sees ``"numba"``.
+    """
+    if request.param == "octants":
+        monkeypatch.setattr(raycast, "_OCTANT_MIN_CELLS", 0)
+        monkeypatch.setattr(raycast, "_OCTANT_MAX_OCCUPIED", 1.0)
+        request = type("Param", (), {"param": "numba"})()
+    if request.param != "numpy" and raycast._jit() is None:
         if importlib.util.find_spec("numba") is not None:
             pytest.fail("numba is installed but the compiled ray caster did not load (see warning)")
         pytest.skip("numba is not installed")
+    if request.param == "auto":
+        # the small-work path of an "auto" caster: numba not loaded yet, budget left
+        monkeypatch.setattr(raycast, "_JIT", False)
+        monkeypatch.setitem(raycast._AUTO, "budget", float("inf"))
     monkeypatch.setattr(raycast, "default_backend", lambda: request.param)
     monkeypatch.setattr(raycast, "_CACHE", weakref.WeakKeyDictionary())
     monkeypatch.setenv("ROBOLAB_RAYCAST", request.param)  # for the subprocess tests
@@ -559,6 +572,50 @@ def test_chessboard_quadrant_fields_match_brute_force(seed):
                 assert got == d if d < 128 else got > min(d, FIELD_MAX) - step, (q, r, c)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_octant_fields_match_brute_force(seed, backend):
+    if backend != "numba":
+        pytest.skip("the compiled fields: once per numba run")
+    from robolab._raycast_jit import DECODE, FIELD_MAX, octant_fields
+
+    rng = np.random.default_rng(seed)
+    shape = (19, 27) if seed else (150, 290)
+    occ = rng.random(shape) < (rng.uniform(0.01, 0.15) if seed else 2e-4)
+    fields = octant_fields(occ)
+    assert fields.shape == (8, *occ.shape) and fields.dtype == np.uint8
+    rr, cc = np.nonzero(occ)
+    step = int(np.diff(DECODE[-2:])[0])
+    for q in range(8):
+        sx, sy, steep = (-1 if q & 1 else 1), (-1 if q & 2 else 1), q >= 4
+        for r in range(0, occ.shape[0], 1 if seed else 7):
+            for c in range(0, occ.shape[1], 1 if seed else 5):
+                a, b = sy * (rr - r), sx * (cc - c)  # rows and columns ahead
+                if steep:
+                    a, b = b, a
+                wedge = (b >= 0) & (a >= 0) & (a <= b + 1)
+                e = b[wedge].min() if wedge.any() else np.inf
+                quad = (a >= 0) & (b >= 0)
+                d = np.maximum(a[quad], b[quad]).min() if quad.any() else np.inf
+                want = max(e, d, 1)
+                got = DECODE[fields[q, r, c]]
+                assert (got == 0) == bool(occ[r, c]), (q, r, c)
+                if occ[r, c]:
+                    continue
+                assert got <= want, (q, r, c)
+                assert got == want if want < 128 else got > min(want, FIELD_MAX) - step, (q, r, c)
+
+
+def test_octants_are_chosen_for_large_sparse_maps_only(backend):
+    if backend != "numba" or raycast._OCTANT_MIN_CELLS == 0:
+        pytest.skip("the rule itself: once, unpatched")
+    sparse = np.zeros((800, 700), bool)
+    sparse[::97, 5:60] = True
+    assert raycast._use_octants(sparse)
+    assert not raycast._use_octants(sparse[:300])  # small: quadrant fields fit in cache
+    cluttered = np.random.default_rng(0).random((800, 700)) < 0.2
+    assert not raycast._use_octants(cluttered)
+
+
 def test_huge_max_range_is_returned_not_inf():
     # max_range / resolution overflows to inf for 1e308 m: rays that leave the map must
     # still return max_range, and hits their exact range.
@@ -586,18 +643,22 @@ def test_environment_selects_the_backend():
 
 
 def test_without_numba_the_numpy_fallback_is_used():
-    # numba made unimportable in a child: cast_rays still works, on the numpy path.
+    # numba made unimportable in a child: cast_rays still works, on the numpy path, and
+    # says so once the "auto" rule wants the compiled path (here: no numpy budget).
     code = (
         "import sys, warnings\n"
         "sys.modules['numba'] = None\n"
         "import numpy as np\n"
         "from robolab import raycast\n"
         "from robolab.maps import OccupancyGrid\n"
+        "raycast._AUTO['budget'] = 0.0\n"
+        "g = OccupancyGrid(np.eye(5), 1.0)\n"
         "with warnings.catch_warnings(record=True) as caught:\n"
         "    warnings.simplefilter('always')\n"
-        "    r = raycast.cast_rays(OccupancyGrid(np.eye(5), 1.0), [0.5, 3.5, 0.0], [0.0], 9.0)\n"
-        "print(raycast._caster_for(OccupancyGrid(np.eye(5), 1.0)).backend, float(r[0, 0]),"
-        " any('numpy fallback' in str(w.message) for w in caught))\n"
+        "    r = raycast.cast_rays(g, [0.5, 3.5, 0.0], [0.0], 9.0)\n"
+        "print(raycast._caster_for(g).last_path, float(r[0, 0]),"
+        " any('numpy fallback' in str(w.message) for w in caught),"
+        " raycast.RayCaster(g).backend)\n"
     )
     import os
     import subprocess
@@ -606,7 +667,7 @@ def test_without_numba_the_numpy_fallback_is_used():
     env = {k: v for k, v in os.environ.items() if k != "ROBOLAB_RAYCAST"}
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env)
     assert run.returncode == 0, run.stderr
-    assert run.stdout.split() == ["numpy", "2.5", "True"]
+    assert run.stdout.split() == ["numpy", "2.5", "True", "numpy"]
 
 
 def test_reference_casts_are_the_numpy_backend_bit_for_bit():
@@ -637,3 +698,66 @@ def test_long_rays_on_a_sparse_map_match_the_exact_traversal():
     want = np.array([[_exact_ray(occ, u, v, th + a, 900.0) for a in angles] for u, v, th in poses])
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-9)
     assert np.any((want > 200) & (want < 900))  # long hits were exercised
+
+
+# -- "auto": numpy for small work, numba once it pays ------------------------------------------
+def test_auto_caster_switches_to_numba_once_its_numpy_budget_is_spent(backend, monkeypatch):
+    if backend != "auto":
+        pytest.skip("one run is enough: the test sets the rule's state itself")
+    rng = np.random.default_rng(5)
+    data = (rng.random((40, 50)) < 0.08).astype(float)
+    data[rng.random((40, 50)) < 0.2] = UNKNOWN
+    g = OccupancyGrid(data, 0.1, origin=[0.2, -0.1, 0.3])
+    poses = np.column_stack([rng.uniform(-0.5, 5.5, (40, 2)), rng.uniform(-np.pi, np.pi, 40)])
+    angles = np.linspace(-np.pi, np.pi, 23)
+    monkeypatch.setitem(raycast._AUTO, "budget", 0.5)
+    monkeypatch.setitem(raycast._AUTO, "numpy_seconds", 0.0)
+    caster = RayCaster(g)
+    assert caster.backend == "auto"
+    small = caster.cast(poses, angles, 3.0)
+    assert caster.last_path == "numpy" and raycast._AUTO["numpy_seconds"] > 0.0
+    np.testing.assert_array_equal(small, RayCaster(g, backend="numpy").cast(poses, angles, 3.0))
+    monkeypatch.setattr(raycast, "_JIT", False)  # (the numpy caster above did not load it)
+    monkeypatch.setitem(raycast._AUTO, "numpy_seconds", 0.5)  # the budget is spent
+    after = caster.cast(poses, angles, 3.0)
+    assert caster.last_path == "numba"
+    np.testing.assert_allclose(after, small, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(after, RayCaster(g, backend="numba").cast(poses, angles, 3.0))
+    # a cast too big for the budget goes to numba at once, also on a fresh caster
+    monkeypatch.setattr(raycast, "_JIT", False)
+    monkeypatch.setitem(raycast._AUTO, "numpy_seconds", 0.0)
+    monkeypatch.setattr(raycast, "_NUMPY_SECONDS_PER_RAY", 1.0)
+    fresh = RayCaster(g)
+    np.testing.assert_array_equal(fresh.cast(poses, angles, 3.0), after)
+    assert fresh.last_path == "numba"
+
+
+def test_a_fresh_process_casts_small_work_without_importing_numba(backend):
+    if backend != "auto":
+        pytest.skip("one run is enough (the child picks its own backend)")
+    code = (
+        "import sys\n"
+        "import numpy as np\n"
+        "from robolab import DATA_DIR\n"
+        "from robolab.maps import load_map\n"
+        "from robolab.raycast import RayCaster, cast_rays, castrays\n"
+        "g = load_map(DATA_DIR / 'office.yaml')\n"
+        "poses = np.array([[2.0, 3.0, 0.4], [5.5, 8.0, -2.0]])\n"
+        "a = np.linspace(-np.pi, np.pi, 60, endpoint=False)\n"
+        "z = cast_rays(g, poses, a, 10.0)\n"
+        "one = castrays(31.5, 40.5, a, g.occupied, 200.0)\n"
+        "print('numba' in sys.modules)\n"
+        "c = RayCaster(g, backend='numba')\n"
+        "print(np.abs(z - c.cast(poses, a, 10.0)).max() < 1e-9)\n"
+    )
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k != "ROBOLAB_RAYCAST"}
+    import subprocess
+    import sys
+
+    run = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["False", "True"]
