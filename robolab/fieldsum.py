@@ -41,6 +41,9 @@ __all__ = ["table_sum", "numpy_table_sum", "pose_table_sum"]
 BLOCK = 1 << 15
 
 
+#: The sums' paths (no "auto": a sum is one pass, compiled or not, chosen by the caller).
+FIELDSUM_BACKENDS = ("numba", "numpy")
+
 def table_sum(table, uv, c, s, qx, qy, backend=None):
     """Per pose, the sum over beams of ``table`` at the beam endpoints (float64).
 
@@ -62,8 +65,8 @@ def table_sum(table, uv, c, s, qx, qy, backend=None):
     numpy.ndarray, shape (N,)
     """
     backend = backend or raycast.default_backend()
-    if backend not in raycast.BACKENDS:
-        raise ValueError(f"backend must be one of {raycast.BACKENDS}, got {backend!r}")
+    if backend not in FIELDSUM_BACKENDS:
+        raise ValueError(f"backend must be one of {FIELDSUM_BACKENDS}, got {backend!r}")
     arrays = [np.ascontiguousarray(a, dtype=np.float32) for a in (table, uv, c, s, qx, qy)]
     if backend == "numba" and raycast._jit() is not None:
         table, uv, c, s, qx, qy = arrays
@@ -146,8 +149,8 @@ def pose_table_sum(table, poses, laser, geometry, qx, qy, backend=None):
         rounding of a cell boundary may fall in the neighbouring cell.
     """
     backend = backend or raycast.default_backend()
-    if backend not in raycast.BACKENDS:
-        raise ValueError(f"backend must be one of {raycast.BACKENDS}, got {backend!r}")
+    if backend not in FIELDSUM_BACKENDS:
+        raise ValueError(f"backend must be one of {FIELDSUM_BACKENDS}, got {backend!r}")
     poses = np.ascontiguousarray(poses, dtype=float)
     laser = np.ascontiguousarray(laser, dtype=float)
     kernel = _fused() if backend == "numba" else None

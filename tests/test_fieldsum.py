@@ -51,9 +51,12 @@ def test_compiled_and_numpy_paths_give_the_same_bits(n):
         np.testing.assert_array_equal(compiled, brute_force(*args))
 
 
-def test_unknown_backend_is_refused():
+@pytest.mark.parametrize("backend", ["cuda", "auto"])
+def test_unknown_backend_is_refused(backend):
     with pytest.raises(ValueError, match="backend"):
-        fieldsum.table_sum(*problem(2), backend="cuda")
+        fieldsum.table_sum(*problem(2), backend=backend)
+    with pytest.raises(ValueError, match="backend"):
+        fieldsum.pose_table_sum(*pose_problem(2), backend=backend)
 
 
 # -- pose_table_sum: from the robots' poses ------------------------------------------------------
