@@ -65,6 +65,7 @@ def show_animation(anim: FuncAnimation, *, fps: float | None = None):
     if fps is None:
         fps = 1000 / getattr(anim, "_interval", 200)
     frames = render_frames(anim)
+    anim._draw_was_started = True  # rendered: no "deleted without rendering" warning
     writer = HTMLWriter(fps=fps, embed_frames=True, default_mode="once")
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "animation.html"
