@@ -383,3 +383,22 @@ def test_estimate_pose_is_the_weighted_mean_of_the_heaviest_cluster():
     w0 = np.zeros(100)
     w0[70] = 1.0
     np.testing.assert_allclose(estimate_pose(p, w0), p[70], atol=1e-12)
+
+
+@pytest.mark.parametrize("spread", [0.3, 3.0, 1e12])
+def test_kld_resample_stops_at_the_first_draw_that_meets_the_bound(spread):
+    """Oracle: draw by draw, count the distinct bins k_j and stop at j >= max(n_min, n(k_j))."""
+    from robolab.plotting.mcl_runs import KLD_BIN_SIZE, kld_resample
+    from solutions.mcl import kld_sample_size
+
+    rng = np.random.default_rng(4)
+    p = rng.normal(0.0, spread, (400, 3))
+    w = rng.random(400)
+    out = kld_resample(p, w, np.random.default_rng(9), kld_sample_size, n_min=20, n_max=3000)
+    draws = p[np.random.default_rng(9).choice(400, size=3000, p=w / w.sum())]
+    seen = set()
+    for j, d in enumerate(draws, start=1):
+        seen.add(tuple(np.floor(d / np.asarray(KLD_BIN_SIZE, float)).astype(np.int64)))
+        if j >= max(20, kld_sample_size(len(seen), 0.05, 2.326)):
+            break
+    np.testing.assert_array_equal(out, draws[:j])

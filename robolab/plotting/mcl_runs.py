@@ -421,7 +421,7 @@ def kld_resample(
     w = as_array("weights", weights, shape=(len(p),), finite=True, nonnegative=True)
     draws = p[rng.choice(len(p), size=int(n_max), p=w / w.sum())]
     cells = np.floor(draws / np.asarray(bin_size, dtype=float)).astype(np.int64)
-    _, first = np.unique(cells, axis=0, return_index=True)
+    first = _first_of_each_row(cells)
     new_bin = np.zeros(len(draws), dtype=np.int64)
     new_bin[first] = 1
     k = np.cumsum(new_bin)
@@ -429,6 +429,26 @@ def kld_resample(
     done = np.flatnonzero(np.arange(1, len(draws) + 1) >= need)
     n = int(done[0]) + 1 if done.size else len(draws)
     return draws[:n]
+
+
+def _first_of_each_row(cells: np.ndarray) -> np.ndarray:
+    """Index of the first occurrence of each distinct row of an (N, D) integer array.
+
+    ``np.unique(cells, axis=0, return_index=True)[1]``, as a set of indices: each row
+    becomes one integer (mixed radix over the columns' spans) and the 1-D unique
+    sorts integers instead of rows (``axis=0`` sorts a structured view, ten times
+    slower; this runs after every step of the KLD run). Rows whose spans would not fit
+    an int64 go the ``axis=0`` way.
+    """
+    lo = cells.min(axis=0)
+    span = cells.max(axis=0) - lo + 1
+    if float(np.prod(span.astype(float))) >= 2.0**62:
+        return np.unique(cells, axis=0, return_index=True)[1]
+    key = np.zeros(len(cells), dtype=np.int64)
+    for column, size in zip((cells - lo).T, span, strict=True):
+        key *= size
+        key += column
+    return np.unique(key, return_index=True)[1]
 
 
 def run_kld(
