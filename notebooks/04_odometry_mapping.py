@@ -687,8 +687,8 @@ plot_map_comparison(logodds_odom, logodds_truth, left_title="raw odometry", righ
 # ## 8. One step further: the Intel Research Lab, a real CARMEN log
 #
 # The Intel lab log holds 910 laser scans with the poses a SLAM system corrected them to, and the raw wheel
-# odometry. We map it with your `logodds_update` twice: with the corrected poses, and with raw odometry anchored at
-# the first corrected pose. Cells no beam reached stay unknown (`robolab.maps.from_logodds`). The data set is not
+# odometry. We map it with your `logodds_update` twice, from every 8th scan: with the corrected poses, and with raw
+# odometry anchored at the first corrected pose. Cells no beam reached stay unknown (`robolab.maps.from_logodds`). The data set is not
 # part of robolab: `robolab.datasets.fetch("intel_lab")` downloads it (0.45 MB) when you are online.
 
 # %%
@@ -703,8 +703,8 @@ else:
     log = read_carmen(folder / "intel-corrected.log.gz")
     intel_params = {"l_occ": np.log(0.7 / 0.3), "l_free": np.log(0.35 / 0.65), "l_0": 0.0,
                     "alpha": 0.2, "beta": np.radians(2.0)}   # 0.1 m cells: alpha two cells
-    corrected = map_carmen(log, logodds_update, intel_params, resolution=0.1, every=4)
-    raw = map_carmen(log, logodds_update, intel_params, resolution=0.1, every=4,
+    corrected = map_carmen(log, logodds_update, intel_params, resolution=0.1, every=8)
+    raw = map_carmen(log, logodds_update, intel_params, resolution=0.1, every=8,
                      poses=carmen_poses(log, "odometry"))
     fig, axes = plt.subplots(1, 2, figsize=(13, 6))
     plot_map(corrected, ax=axes[0], title="Intel lab, corrected poses")
