@@ -554,6 +554,10 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     dx = (grid.origin[0] - laser[0]) + c * u - s * v
     dy = (grid.origin[1] - laser[1]) + s * u + c * v
     r = np.hypot(dx, dy)
+    # only cells within reach can be in the perceptual field (the others get delta = 0):
+    # the bearings and the beam search, the costly part, run on those cells only
+    near = r <= min(rmax, float(z.max()) + p["alpha"] / 2)
+    r, dx, dy = r[near], dx[near], dy[near]
     phi = wrap_angle(np.arctan2(dy, dx) - laser[2])
 
     # nearest beam in bearing, on the circle: the sorted angles padded by one beam
@@ -573,7 +577,8 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     occupied = in_field & can_hit[k] & (np.abs(r - zk) < p["alpha"] / 2)
     free = in_field & ~occupied & (r <= zk)
     delta = np.where(occupied, p["l_occ"] - p["l_0"], np.where(free, p["l_free"] - p["l_0"], 0.0))
-    out[lo[1] : hi[1], lo[0] : hi[0]] += delta
+    window = out[lo[1] : hi[1], lo[0] : hi[0]]
+    window[near] += delta
     return out
 
 
