@@ -663,7 +663,7 @@ checks.check_logodds_to_probability(logodds_to_probability)
 PARAMS = {"l_occ": np.log(0.7 / 0.3), "l_free": np.log(0.35 / 0.65), "l_0": 0.0,
           "alpha": 0.1, "beta": np.radians(2.0)}   # alpha two cells, beta two beam spacings
 
-def build_logodds_map(robot_poses, label, every=4):
+def build_logodds_map(robot_poses, label, every=8):
     laser_poses = compose(robot_poses, laser_offset)
     l = np.zeros(empty.shape)
     for i in progress_bar(range(0, len(scans), every), desc=label, unit="scan"):
@@ -673,7 +673,7 @@ def build_logodds_map(robot_poses, label, every=4):
 logodds_truth = build_logodds_map(true_poses, "log-odds, ground truth")
 logodds_odom = build_logodds_map(odom_poses, "log-odds, raw odometry")
 plot_map_comparison(logodds_odom, logodds_truth, left_title="raw odometry", right_title="ground-truth poses",
-                    title="Log-odds occupancy grids (every 4th scan), p(occupied)",
+                    title="Log-odds occupancy grids (every 8th scan), p(occupied)",
                     left_path=odom_poses, right_path=true_poses);
 
 # %% [markdown]
