@@ -8,7 +8,11 @@ one-time costs (bytecode, matplotlib's font cache, numba's kernels compiled into
 cache), the second is what every later check costs. Wall and CPU seconds (children
 included), with the machine's load.
 
-    python benchmarks/install.py [--lab mcl]
+    python benchmarks/install.py [--lab mcl] [--here]
+
+``--here`` skips the wheel and the install: both checks run with this Python (this
+checkout's robolab), still with empty numba and matplotlib caches, which is what the
+first check of a fresh install pays beyond the bytecode.
 
 Under ``ROBOLAB_BENCH_TINY=1`` the install is skipped and both checks run in this
 environment on the bayes lab (tests/test_benchmarks.py).
@@ -46,6 +50,8 @@ def timed(cmd: list[str], **kw) -> tuple[float, float]:
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--lab", default="mcl", help="the lab whose solved notebook is checked")
+    p.add_argument("--here", action="store_true",
+                   help="no install: check with this Python, from empty numba/matplotlib caches")
     args = p.parse_args()
     lab = "bayes" if timing.TINY else args.lab
     rows = []
@@ -53,7 +59,7 @@ def main() -> int:
         tmp = Path(tmp)
         python = Path(sys.executable)
         env = dict(os.environ, MPLBACKEND="Agg")
-        if not timing.TINY:
+        if not timing.TINY and not args.here:
             edition = tmp / "edition"
             subprocess.run([sys.executable, "-m", "robolab.cli", "release", str(edition)],
                            check=True, capture_output=True)
@@ -62,6 +68,7 @@ def main() -> int:
             python = tmp / "venv" / "bin" / "python"
             rows.append(("pip install the student wheel (pip cache as found)",
                          *timed([str(python), "-m", "pip", "install", "--quiet", str(wheel)])))
+        if not timing.TINY:
             # a fresh user's caches: matplotlib's font list and numba's kernels start empty
             env.update(MPLCONFIGDIR=str(tmp / "mpl"), NUMBA_CACHE_DIR=str(tmp / "numba"))
         notebook = next((ROOT / "notebooks").glob(f"[0-9][0-9]_{lab}.ipynb"))

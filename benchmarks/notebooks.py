@@ -6,12 +6,19 @@ nbclient (Jupyter's own executor) and reads the kernel's own CPU time
 start-up of the client and wall time lost to a busy machine do not count. Prints one
 row per lab with the slowest cells, and the machine's load.
 
+    python benchmarks/notebooks.py [LAB ...] [--cells N]
+
+``LAB``: part of a notebook's name (``mcl``, ``05``); default every lab. The first run
+after an edit of a numba kernel (or in a fresh checkout) includes its compilation into
+numba's cache; run twice to see what a student's later runs cost.
+
 Under ``ROBOLAB_BENCH_TINY=1`` (tests/test_benchmarks.py) only lab 01 (Bayes, the quickest)
 is solved and run: the same path, one notebook.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import subprocess
@@ -34,17 +41,17 @@ TIMER = ("import time as _t, resource as _r\n"
          "    _cells.append((_cpu() - _c0, cell))\n"
          "get_ipython().events.register('pre_run_cell', _pre)\n"
          "get_ipython().events.register('post_run_cell', _post)")
-REPORT = ("import json as _j; print('CELLS', _j.dumps(sorted(_cells, reverse=True)[:3]))\n"
+REPORT = ("import json as _j; print('CELLS', _j.dumps(sorted(_cells, reverse=True)[:{cells}]))\n"
           + CPU_CELL)
 
 
-def run(notebook: Path) -> tuple[float, list, float]:
+def run(notebook: Path, cells: int = 3) -> tuple[float, list, float]:
     import nbformat
     from nbclient import NotebookClient
 
     nb = nbformat.read(str(notebook), as_version=4)
     nb.cells.insert(0, nbformat.v4.new_code_cell(TIMER))
-    nb.cells.append(nbformat.v4.new_code_cell(REPORT))
+    nb.cells.append(nbformat.v4.new_code_cell(REPORT.replace("{cells}", str(cells))))
     start = time.perf_counter()
     NotebookClient(nb, timeout=900, kernel_name="python3",
                    resources={"metadata": {"path": str(notebook.parent)}}).execute()
@@ -56,6 +63,10 @@ def run(notebook: Path) -> tuple[float, list, float]:
 
 
 def main() -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("labs", nargs="*", help="parts of notebook names (default: every lab)")
+    p.add_argument("--cells", type=int, default=3, help="how many of the slowest cells to name")
+    args = p.parse_args()
     os.environ.setdefault("MPLBACKEND", "Agg")
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "solved"
@@ -70,7 +81,9 @@ def main() -> int:
         print(f"{'lab':<24}{'kernel CPU [s]':>16}{'of budget':>11}{'wall [s]':>10}  slowest cells")
         over = 0
         for nb in sorted(out.glob("*.ipynb")):
-            cpu, cells, wall = run(nb)
+            if args.labs and not any(lab in nb.stem for lab in args.labs):
+                continue
+            cpu, cells, wall = run(nb, args.cells)
             over += cpu > BUDGET
             slow = "; ".join(f"{c:.1f} s {(line or [''])[0][:40]!r}" for c, line in cells)
             print(f"{nb.stem:<24}{cpu:>16.1f}{cpu / BUDGET:>10.0%}{wall:>10.1f}  {slow}")

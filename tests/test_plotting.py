@@ -358,3 +358,47 @@ def test_graph_slam_figures_are_titled_and_labelled():
     ax = plot_objective_history({"run": {"objective": np.array([100.0, 10.0, 9.0])}})
     assert ax.get_yscale() == "log" and ax.get_ylabel()
     plt.close("all")
+
+
+def test_estimate_pose_is_the_weighted_mean_of_the_heaviest_cluster():
+    """Two clusters: the heavier one wins; its weighted mean, headings averaged on the circle."""
+    from robolab.plotting.mcl_runs import estimate_pose
+
+    rng = np.random.default_rng(3)
+    light = np.column_stack([rng.normal(1.0, 0.05, 60), rng.normal(1.0, 0.05, 60),
+                             np.full(60, 0.5)])
+    heavy = np.column_stack([rng.normal(8.0, 0.05, 40), rng.normal(4.0, 0.05, 40),
+                             np.where(np.arange(40) % 2, np.pi - 0.1, -np.pi + 0.1)])
+    p = np.vstack([light, heavy])
+    w = np.r_[np.full(60, 0.2 / 60), rng.uniform(0.5, 1.5, 40)]
+    w /= w.sum()
+    est = estimate_pose(p, w)
+    wh = w[60:] / w[60:].sum()
+    np.testing.assert_allclose(est[:2], wh @ heavy[:, :2], rtol=0, atol=1e-12)
+    heading = np.arctan2(wh @ np.sin(heavy[:, 2]), wh @ np.cos(heavy[:, 2]))
+    assert abs(abs(est[2]) - np.pi) < 0.1 and abs(np.angle(np.exp(1j * (est[2] - heading)))) < 1e-12
+    # unweighted: the 60 particles are the heaviest cluster
+    np.testing.assert_allclose(estimate_pose(p)[:2], light[:, :2].mean(axis=0), atol=1e-12)
+    # a cluster whose particles all weigh 0 cannot win; one weight carries everything
+    w0 = np.zeros(100)
+    w0[70] = 1.0
+    np.testing.assert_allclose(estimate_pose(p, w0), p[70], atol=1e-12)
+
+
+@pytest.mark.parametrize("spread", [0.3, 3.0, 1e12])
+def test_kld_resample_stops_at_the_first_draw_that_meets_the_bound(spread):
+    """Oracle: draw by draw, count the distinct bins k_j and stop at j >= max(n_min, n(k_j))."""
+    from robolab.plotting.mcl_runs import KLD_BIN_SIZE, kld_resample
+    from solutions.mcl import kld_sample_size
+
+    rng = np.random.default_rng(4)
+    p = rng.normal(0.0, spread, (400, 3))
+    w = rng.random(400)
+    out = kld_resample(p, w, np.random.default_rng(9), kld_sample_size, n_min=20, n_max=3000)
+    draws = p[np.random.default_rng(9).choice(400, size=3000, p=w / w.sum())]
+    seen = set()
+    for j, d in enumerate(draws, start=1):
+        seen.add(tuple(np.floor(d / np.asarray(KLD_BIN_SIZE, float)).astype(np.int64)))
+        if j >= max(20, kld_sample_size(len(seen), 0.05, 2.326)):
+            break
+    np.testing.assert_array_equal(out, draws[:j])

@@ -8,6 +8,7 @@ in :mod:`~robolab.grading.running.runner`, :mod:`~robolab.grading.course.report`
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import importlib.util
 import inspect
@@ -357,10 +358,11 @@ def check(notebook: Path) -> int:
     import tempfile
 
     from robolab.grading.loading.kernel import Notebook, load_budget
-    from robolab.grading.running.proxy import Limits
+    from robolab.grading.running.limits import Limits
 
     budget = load_budget(Limits().wall_seconds, Limits().cpu_seconds)
     with (
+        _numpy_kernels(),
         tempfile.TemporaryDirectory(prefix="robolab-check-") as folder,
         Notebook(folder) as kernel_notebook,
     ):
@@ -373,6 +375,31 @@ def check(notebook: Path) -> int:
         return 1
     print("visible checks passed (the graded tests are stronger: test your edge cases too).")
     return 0
+
+
+@contextlib.contextmanager
+def _numpy_kernels():
+    """While checking, the library's numpy paths, not its numba kernels (unless chosen).
+
+    The visible checks are small work (a few poses, a few dozen beams), which numpy does
+    in milliseconds, while numba's first call imports numba (about a second) and compiles
+    its kernels into the user's cache (tens of seconds on a busy laptop): a student's
+    first ``robolab check`` would wait for compilation it does not need. The results are
+    the same (:mod:`robolab.raycast`'s backends agree). ``ROBOLAB_RAYCAST`` set by the
+    user is kept; when this sets it, it is removed afterwards, and the backend choice
+    made under it is forgotten (in-process callers get numba back).
+    """
+    if "ROBOLAB_RAYCAST" in os.environ:
+        yield
+        return
+    os.environ["ROBOLAB_RAYCAST"] = "numpy"
+    try:
+        yield
+    finally:
+        os.environ.pop("ROBOLAB_RAYCAST", None)
+        raycast = sys.modules.get("robolab.raycast")
+        if raycast is not None and getattr(raycast, "_JIT", False) is None:
+            raycast._JIT = False  # chosen under the override: choose again on next use
 
 
 def _run_checks(visible: list, namespace: dict, problems: list) -> int:

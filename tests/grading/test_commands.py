@@ -10,6 +10,7 @@ from __future__ import annotations
 import ast
 import csv
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -151,3 +152,23 @@ def test_check_reports_visible_checks_only(name, code, expected, capsys):
     out = capsys.readouterr().out
     assert expected in out
     assert "all tests passed" not in out.lower()
+
+
+def test_check_runs_the_numpy_kernels_and_leaves_the_backend_choice_as_it_was(monkeypatch):
+    # The visible checks are small work: while checking, robolab.raycast's backend is numpy
+    # (no numba import, no compilation into the student's cache); afterwards the process
+    # chooses as before, and a backend the user chose is kept.
+    from robolab import raycast
+    from robolab.grading.commands import _numpy_kernels
+
+    monkeypatch.delenv("ROBOLAB_RAYCAST", raising=False)
+    before = raycast.default_backend()
+    monkeypatch.setattr(raycast, "_JIT", False)  # not chosen yet, as in a fresh process
+    with _numpy_kernels():
+        assert raycast.default_backend() == "numpy"
+    assert "ROBOLAB_RAYCAST" not in os.environ
+    assert raycast.default_backend() == before
+    monkeypatch.setenv("ROBOLAB_RAYCAST", "numba")
+    with _numpy_kernels():
+        assert os.environ["ROBOLAB_RAYCAST"] == "numba"
+    assert os.environ["ROBOLAB_RAYCAST"] == "numba"
