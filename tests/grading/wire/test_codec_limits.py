@@ -445,3 +445,23 @@ def test_decoding_is_charged_to_the_call_that_sent_the_result(tmp_path, monkeypa
         monkeypatch.setattr(channel, "decode_clock", lambda: float(next(ticks)))
         with pytest.raises(proxy.WorkerTimeout, match="decoding its result: 5.0 s"):
             sub.half(3.0)
+
+
+def test_shared_references_cost_the_sender_one_visit_each_with_scipy_loaded(monkeypatch):
+    """With scipy.sparse loaded, dumps looks for sparse matrices inside the value: once
+    per distinct container and depth (it walked every path: 1e8 leaves, minutes of CPU),
+    and a sparse matrix under shared references is converted wherever it appears."""
+    import scipy.sparse
+
+    looks = []
+    issparse = scipy.sparse.issparse
+    monkeypatch.setattr(scipy.sparse, "issparse", lambda v: looks.append(1) or issparse(v))
+    refused(codec.dumps(_nested(1.0, 10, 8)), "too large")
+    assert 0 < len(looks) < 1000  # 9 containers: about 11 looks each (1e8 before)
+    matrix = scipy.sparse.eye(3, format="csr")
+    inner = [matrix, 1]
+    value = [inner, (inner, {"m": inner}), [[inner]]]
+    back = codec.loads(codec.dumps(value))
+    found = [back[0][0], back[1][0][0], back[1][1]["m"][0], back[2][0][0][0]]
+    assert all(isinstance(m, codec.SparseMatrix) for m in found)
+    assert all(np.array_equal(m.toarray(), np.eye(3)) for m in found)
