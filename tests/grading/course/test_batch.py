@@ -8,7 +8,6 @@ the isolation.
 
 from __future__ import annotations
 
-import contextlib
 import csv
 import json
 import os
@@ -24,6 +23,7 @@ import pytest
 from robolab.cli import main
 from robolab.grading.course.batch import STATE_FILE
 from tests.grading.running.test_runner import REPO, SUBMISSIONS, make_root, write_notebook
+from tests.grading.sigint import sigint_default
 
 BAYES = REPO / "examples" / "submissions" / "bayes"
 
@@ -173,18 +173,6 @@ def _hanging(path: Path) -> Path:
     )
 
 
-@contextlib.contextmanager
-def _sigint_default():
-    """Children started meanwhile get SIGINT at its default, as from a terminal.
-
-    A test run started in the background of a script (``make test &``) inherits SIGINT
-    ignored, and so would robolab grade, which then (like any command) keeps ignoring it.
-    """
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 # Both signals take the same path (a stop request, robolab.grading.running.stopping), so
@@ -219,7 +207,7 @@ def test_interrupt_leaves_a_valid_partial_gradebook_and_resumes(
         str(out),
     ]
     env = dict(os.environ, ROBOLAB_ROOT=str(project))
-    with _sigint_default():
+    with sigint_default():
         proc = subprocess.Popen(
             cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
         )

@@ -21,6 +21,7 @@ from pathlib import Path
 import pytest
 
 from robolab.grading.running.runner import grade_all
+from tests.grading.sigint import sigint_default
 
 REPO = Path(__file__).resolve().parents[3]
 EXAMPLES = REPO / "examples" / "submissions"
@@ -217,7 +218,8 @@ def test_a_signal_stops_a_batch_under_load(tmp_path, busy_loops, sig):
     out = tmp_path / "grades"
     cmd = [sys.executable, "-m", "robolab.cli", "grade", *map(str, [*fast, hang])]
     cmd += ["--out", str(out), "--lab", "demo"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    with sigint_default():
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         # An event, not a sleep: both quick ones are written down (the third takes 25 s).
         deadline = time.monotonic() + HANG

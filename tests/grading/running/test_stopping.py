@@ -13,6 +13,7 @@ import sys
 import pytest
 
 from robolab.grading.running import stopping
+from tests.grading.sigint import sigint_default
 
 
 @pytest.fixture
@@ -59,13 +60,17 @@ def test_an_inherited_ignored_sigint_stays_ignored(handlers):
         assert stopping.requested()
 
 
+_SLEEP = "import time\ntime.sleep(600)"
+
+
 def _child(code: str) -> subprocess.Popen:
     """A Python child that says when it is ready, in our process group (not a leader)."""
-    proc = subprocess.Popen(
-        [sys.executable, "-c", code + "\nprint('ready', flush=True)\nimport time\ntime.sleep(600)"],
-        stdout=subprocess.PIPE,
-        text=True,
-    )
+    with sigint_default():
+        proc = subprocess.Popen(
+            [sys.executable, "-c", f"{code}\nprint('ready', flush=True)\n{_SLEEP}"],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
     assert proc.stdout.readline().strip() == "ready"
     return proc
 
