@@ -70,13 +70,17 @@ def signals_seen() -> int:
 
 
 def requested() -> bool:
-    """Whether a stop was asked for (one signal or more)."""
-    return _seen > 0
+    """Whether a stop was asked for (one signal or more) in the open :func:`on_signals` block.
+
+    Outside every block nothing listens (a signal raises as usual), so nothing is
+    requested: a block that saw a stop must not stop a later batch run as a library.
+    """
+    return _depth > 0 and _seen > 0
 
 
 def hurried() -> bool:
     """Whether a stop *now* was asked for (a second signal): no grace for the pytest runs."""
-    return _seen > 1
+    return _depth > 0 and _seen > 1
 
 
 @contextlib.contextmanager
@@ -104,9 +108,10 @@ def on_signals() -> Iterator[None]:
             previous[sig] = signal.signal(sig, _handler)
         yield
     finally:
+        stopped = requested()
         _depth -= 1
         for sig, handler in previous.items():
-            signal.signal(sig, signal.SIG_IGN if requested() else handler)
+            signal.signal(sig, signal.SIG_IGN if stopped else handler)
 
 
 # --- the pytest runs of this process, and stopping them ---------------------------------

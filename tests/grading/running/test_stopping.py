@@ -36,6 +36,9 @@ def test_signals_request_a_stop_and_raise_nothing(handlers):
     # a stopped command is about to exit: later signals must not kill or raise in it
     assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_IGN
+    # nor does the request outlive its block: a batch run later as a library (in the
+    # same process: a test suite, a notebook) is not stopped by it
+    assert not stopping.requested() and not stopping.hurried()
 
 
 def test_handlers_come_back_when_nothing_was_requested(handlers):
