@@ -95,14 +95,7 @@ def cached_table(source: np.ndarray, key: Hashable, build: Callable[[], np.ndarr
         entry = (weakref.ref(source, _forget(id(source))), {})
         _TABLES[id(source)] = entry
     tables = entry[1]
-    table = tables.get(key)
-    if table is None:
-        table = np.asarray(build())
-        table.flags.writeable = False
-        if len(tables) >= MAX_TABLES_PER_ARRAY:
-            tables.pop(next(iter(tables)))
-        tables[key] = table
-    return table
+    return _table(tables, key, build)
 
 
 def _by_content(source, key, build):
@@ -119,14 +112,7 @@ def _by_content(source, key, build):
         tables = {}
         _BY_CONTENT.insert(0, (source.shape, source.dtype, data, tables))
         del _BY_CONTENT[MAX_BY_CONTENT:]
-    table = tables.get(key)
-    if table is None:
-        table = np.asarray(build())
-        table.flags.writeable = False
-        if len(tables) >= MAX_TABLES_PER_ARRAY:
-            tables.pop(next(iter(tables)))
-        tables[key] = table
-    return table
+    return _table(tables, key, build)
 
 
 def _forget(ident: int):
@@ -136,3 +122,15 @@ def _forget(ident: int):
             del _TABLES[ident]
 
     return callback
+
+
+def _table(tables: dict, key, build):
+    """``tables[key]``, built read-only on first use (at most MAX_TABLES_PER_ARRAY kept)."""
+    table = tables.get(key)
+    if table is None:
+        table = np.asarray(build())
+        table.flags.writeable = False
+        if len(tables) >= MAX_TABLES_PER_ARRAY:
+            tables.pop(next(iter(tables)))
+        tables[key] = table
+    return table
