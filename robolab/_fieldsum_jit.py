@@ -77,6 +77,8 @@ def pose_table_sum(  # pragma: no cover - compiled
         phi = heading - oyaw
         ci = np.float32(math.cos(phi))
         si = np.float32(math.sin(phi))
+        # The loops of _raycast_jit.table_sum, written out again on purpose: one shared
+        # njit helper made this kernel 7-11 % slower (interleaved, 5000 poses x 60 beams).
         for k in range(n_beams):
             u = ci * qx[k]
             u = u - si * qy[k]
