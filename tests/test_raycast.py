@@ -543,16 +543,21 @@ def test_poses_on_the_map_edge_agree_between_backends(backend):
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
 
 
+def _field_test_grid(seed, small, large):
+    """Random occupancy for the jump-field oracles: seed 0 a large grid sparse enough for
+    distances past the exact one-byte range (127 cells), other seeds small and denser."""
+    rng = np.random.default_rng(seed)
+    shape = small if seed else large
+    return rng.random(shape) < (rng.uniform(0.01, 0.15) if seed else 2e-4)
+
+
 @pytest.mark.parametrize("seed", range(3))
 def test_chessboard_quadrant_fields_match_brute_force(seed):
     if raycast._jit() is None:
         pytest.skip("numba is not installed")
     from robolab._raycast_jit import DECODE, FIELD_MAX, quadrant_fields
 
-    rng = np.random.default_rng(seed)
-    # sparse enough for distances past the exact one-byte range (127 cells)
-    shape = (17, 29) if seed else (160, 300)
-    occ = rng.random(shape) < (rng.uniform(0.01, 0.15) if seed else 2e-4)
+    occ = _field_test_grid(seed, (17, 29), (160, 300))
     fields = quadrant_fields(occ)
     assert fields.shape == (4, *occ.shape) and fields.dtype == np.uint8
     rr, cc = np.nonzero(occ)
@@ -578,9 +583,7 @@ def test_octant_fields_match_brute_force(seed, backend):
         pytest.skip("the compiled fields: once per numba run")
     from robolab._raycast_jit import DECODE, FIELD_MAX, octant_fields
 
-    rng = np.random.default_rng(seed)
-    shape = (19, 27) if seed else (150, 290)
-    occ = rng.random(shape) < (rng.uniform(0.01, 0.15) if seed else 2e-4)
+    occ = _field_test_grid(seed, (19, 27), (150, 290))
     fields = octant_fields(occ)
     assert fields.shape == (8, *occ.shape) and fields.dtype == np.uint8
     rr, cc = np.nonzero(occ)
