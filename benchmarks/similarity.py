@@ -21,6 +21,8 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+#: ``ROBOLAB_BENCH_TINY=1`` (tests/test_benchmarks.py): a class of 12, a baseline of 6.
+TINY = os.environ.get("ROBOLAB_BENCH_TINY") == "1"
 
 from robolab.grading.course.similarity import compare, fragments, similarity_report  # noqa: E402
 from tests.grading.course.test_similarity import LOOPS, VECTORIZED, disguise, notebook  # noqa: E402
@@ -37,8 +39,8 @@ def _own_line(code: str, i: int) -> str:
 
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--students", type=int, default=300)
-    p.add_argument("--baseline", type=int, default=40)
+    p.add_argument("--students", type=int, default=12 if TINY else 300)
+    p.add_argument("--baseline", type=int, default=6 if TINY else 40)
     args = p.parse_args()
     print(f"load before: {os.getloadavg()}")
     with tempfile.TemporaryDirectory() as tmp:
