@@ -105,12 +105,11 @@ def main() -> None:
     args = parser.parse_args()
     print(f"graph SLAM benchmark, {timing.pin_to_one_core()}, {timing.load_average()}")
     folder = locate("graph_slam")
-    if folder is None:
-        print(
-            "the graph_slam data set is not on disk "
-            "(robolab.datasets.fetch('graph_slam')): nothing to run"
+    if folder is None:  # fail, not skip: a benchmark without its data measured nothing
+        raise SystemExit(
+            "the graph_slam data set is not on disk: put ../shared/data/graph_slam beside the "
+            "repository or run robolab.datasets.fetch('graph_slam')"
         )
-        return
     try:
         import gtsam  # noqa: F401
 

@@ -17,7 +17,7 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 BENCHMARKS = sorted((ROOT / "benchmarks").glob("*.py"))
 #: Benchmarks that read ../shared/data (they fail without it, as they should).
-NEEDS_SHARED = {"raycast"}
+NEEDS_SHARED = {"raycast", "graph_slam"}
 #: Benchmarks that need the network even at their tiny size (skipped here, with the reason).
 NEEDS_NETWORK = {
     "gradescope_memory": "gradescope_memory.py runs the bundle's own setup.sh, which "
