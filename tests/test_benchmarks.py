@@ -35,7 +35,11 @@ def test_the_benchmark_runs_to_the_end(path):
         pytest.skip("needs ../shared/data")
     env = {**os.environ, "ROBOLAB_BENCH_TINY": "1", "MPLBACKEND": "Agg"}
     proc = subprocess.run(
-        [sys.executable, str(path)], cwd=ROOT, env=env, capture_output=True, text=True,
+        [sys.executable, str(path)],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
         timeout=600,
     )
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
