@@ -19,7 +19,11 @@ Rows, all measured in this run:
 * per-pose loop: ``cast_rays`` and ``beam_range_finder_model`` vectorized over
   the beams, looping over poses; timed on 200 poses and scaled;
 * vectorized: one ``cast_rays`` for all poses + one ``beam_range_finder_model``
-  (the solution), with its two parts timed separately;
+  (the solution), with its two parts timed separately. The ray casting is the
+  compiled path, loaded up front with ``robolab.raycast.warm_up()`` (the
+  default "auto" caster would take the numpy path for a process's first
+  half-second of casts); the header says which path ran, and one more row
+  times the numpy path (``ROBOLAB_RAYCAST=numpy``, the grading worker's);
 * ``pose_likelihood_map`` on 625 positions x 4 headings (2500 poses, headings
   90 degrees apart): directions shared between headings are cast once.
 
@@ -40,8 +44,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from robolab import raycast  # noqa: E402
 from robolab.maps import load_maze  # noqa: E402
-from robolab.raycast import cast_rays, castraysingle  # noqa: E402
+from robolab.raycast import RayCaster, cast_rays, castraysingle  # noqa: E402
 from solutions import beam_model as lab  # noqa: E402
 
 N_POSES, REPEATS, TARGET = timing.sized(2500, 20), 5, 100.0
@@ -122,6 +127,7 @@ def vectorized(scan, grid, poses, params):
 
 def main():
     pinned = timing.pin_to_one_core()
+    backend = raycast.warm_up()  # the compiled ray caster, when numba is installed
     grid = load_maze()
     rng = np.random.default_rng(0)
     free = np.argwhere(grid.free)
@@ -184,8 +190,22 @@ def main():
         },
         3 * REPEATS,
     )
-    rows.append(("  of which ray casting (152,500 rays)", cast.wall, cast.cpu, ""))
+    path = raycast._caster_for(grid).last_path
+    numpy_caster = RayCaster(grid, backend="numpy")
+    np.testing.assert_allclose(
+        numpy_caster.cast(poses, BEAMS, PARAMS["max_range"]), z_star, rtol=0, atol=1e-9
+    )
+    numpy_cast = timing.best_of(numpy_caster.cast, REPEATS, poses, BEAMS, PARAMS["max_range"])
+    rows.append((f"  of which ray casting ({z_star.size:,} rays, {path})", cast.wall, cast.cpu, ""))
     rows.append(("  of which the model, log form", model.wall, model.cpu, ""))
+    rows.append(
+        (
+            "  ray casting on the numpy path instead",
+            numpy_cast.wall,
+            numpy_cast.cpu,
+            "ROBOLAB_RAYCAST=numpy (grading worker)",
+        )
+    )
     rows.append(
         (
             "  baseline: model composed of p_hit + p_short + ...",
@@ -210,6 +230,7 @@ def main():
         f"beam model log-likelihood, {N_POSES} poses x {BEAMS.size} beams on the maze, "
         f"{pinned}, best of {REPEATS}, {timing.load_average()}"
     )
+    print(f"ray casting: the {path} path (warm_up() gave {backend!r})")
     print(
         f"{'method':50s} {'wall [ms]':>10s} {'cpu [ms]':>10s} {'eval/s (cpu)':>13s} "
         f"{'speed-up':>9s}  note"
