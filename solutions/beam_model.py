@@ -649,8 +649,8 @@ def beam_range_finder_model(z, z_star, params, log=False):
 
 def _tiles(z: np.ndarray, prm: dict[str, float]):
     """A block of rows of one shared scan, contiguous, and its :func:`_reading_terms`."""
-    z = np.ascontiguousarray(z)
-    return (z, *_reading_terms(z, prm))
+    row = z[:1]
+    return tuple(np.repeat(t, len(z), axis=0) for t in (row, *_reading_terms(row, prm)))
 
 
 def _within(arr: np.ndarray, top: float) -> bool:
