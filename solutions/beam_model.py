@@ -513,7 +513,7 @@ def _mixture(z: np.ndarray, z_star: np.ndarray, prm: dict[str, float], shared: _
     p *= -0.5
     np.exp(p, out=p)
     p *= shared.peak
-    flat_p = p.reshape(-1)  # p is a new C-contiguous array: a view
+    flat_p = p.reshape(-1)  # the scratch is C-contiguous: a view
     zs = z_star.reshape(-1)
     _divide_by_hit_mass(flat_p, zs, zmax, sigma, shared.lo, shared.hi)
     p += flat
