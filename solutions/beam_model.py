@@ -84,6 +84,10 @@ ANGLE_QUANTUM = 1e-9
 LOG_SPACE_BELOW = 1e-280
 #: erf(x) rounds to exactly 1.0 in float64 for x >= this (scipy: from 5.93 on).
 ERF_IS_ONE = 6.0
+#: A hit term below ``HIT_NEGLIGIBLE`` times the reading's own terms (``z_max p_max + z_rand
+#: p_rand``) is lost when they are added, even divided by its normalizer (>= 0.5 there):
+#: twice it is below half a unit in the last place of the sum.
+HIT_NEGLIGIBLE = 2.0**-56
 #: beam_range_finder_model evaluates about this many beams at a time (temporaries of 64 KiB).
 #: Larger blocks run the model alone up to 10 % faster, but after a ray cast of as many beams
 #: the heap then grows past malloc's trim threshold and is handed back on every call: 2^15
@@ -443,16 +447,16 @@ def _erf_window(z_max: float, sigma: float) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
-def _reading_terms(z: np.ndarray, prm: dict[str, float]) -> tuple[np.ndarray, np.ndarray]:
+def _reading_terms(z: np.ndarray, prm: dict[str, float]) -> tuple[np.ndarray, ...]:
     """The mixture's terms that depend on the reading alone.
 
-    ``z_max p_max + z_rand p_rand``, and ``z_short`` times the numerator
-    ``lambda e^{-lambda z}`` of ``p_short``.
+    ``flat = z_max p_max + z_rand p_rand``, ``flat * HIT_NEGLIGIBLE``, and ``z_short``
+    times the numerator ``lambda e^{-lambda z}`` of ``p_short``.
     """
     zmax, lam = prm["max_range"], prm["lambda_short"]
     flat = np.where(z == zmax, prm["z_max"], 0.0)
     flat = flat + np.where(z < zmax, prm["z_rand"] / zmax, 0.0)
-    return flat, prm["z_short"] * lam * np.exp(-lam * z)
+    return flat, flat * HIT_NEGLIGIBLE, prm["z_short"] * lam * np.exp(-lam * z)
 
 
 class _Shared(NamedTuple):
@@ -465,25 +469,28 @@ class _Shared(NamedTuple):
     hi: float
     #: When all poses share one scan: the scan and its :func:`_reading_terms`, repeated over
     #: the rows of a block (C-contiguous, so that no operation broadcasts); else None.
-    tiles: tuple[np.ndarray, np.ndarray, np.ndarray] | None
+    tiles: tuple[np.ndarray, ...] | None
     #: A block's worth of memory for the mixture, reused by every block (not allocated afresh).
     scratch: np.ndarray
 
 
-def _divide_by_hit_mass(p, z_star, z_max: float, sigma: float, lo: float, hi: float) -> None:
-    """``p /= _hit_mass(z_star, z_max, sigma)`` on flat arrays, evaluating erf only where needed.
+def _divide_by_hit_mass(p, z_star, z_max: float, sigma: float, lo: float, hi: float, floor):
+    """``p /= _hit_mass(z_star, z_max, sigma)`` on flat arrays, with erf only where it matters.
 
     The mass is exactly 1 for ``lo <= z* <= hi`` (:func:`_erf_window`), so only the beams
     outside are divided. When those two ranges do not overlap (``lo <= hi``), a beam
     needs at most one of the two erf, the other being 1.0: ``0.5 (erf(a) + 1.0)``, the
-    same operations on the same numbers as :func:`_hit_mass`.
+    same operations on the same numbers as :func:`_hit_mass`. That mass is at least 0.5,
+    so a beam with ``p < floor`` (the reading's own terms times ``HIT_NEGLIGIBLE``,
+    added to ``p`` next) gives the same sum divided or not, and is left as it is.
     """
-    if lo > hi:  # sigma large next to z_max: every beam may need both
+    if lo > hi:  # sigma large next to z_max: every beam may need both, the mass be tiny
         p /= _hit_mass(z_star, z_max, sigma)
         return
     scale = sigma * np.sqrt(2.0)
-    low = np.flatnonzero(z_star < lo)
-    high = np.flatnonzero(z_star > hi)
+    matters = p >= floor
+    low = np.flatnonzero((z_star < lo) & matters)
+    high = np.flatnonzero((z_star > hi) & matters)
     for near, arg in ((low, z_star.take(low) / scale), (high, (z_max - z_star.take(high)) / scale)):
         mass = erf(arg, out=arg)
         mass += 1.0
@@ -504,9 +511,9 @@ def _mixture(z: np.ndarray, z_star: np.ndarray, prm: dict[str, float], shared: _
     """
     zmax, sigma, lam = prm["max_range"], prm["sigma_hit"], prm["lambda_short"]
     if shared.tiles is not None:
-        z, flat, short_coef = (tile[: len(z_star)] for tile in shared.tiles)
+        z, flat, floor, short_coef = (tile[: len(z_star)] for tile in shared.tiles)
     else:
-        flat, short_coef = _reading_terms(z, prm)
+        flat, floor, short_coef = _reading_terms(z, prm)
     p = np.subtract(z, z_star, out=shared.scratch[: z_star.size].reshape(z_star.shape))
     p /= sigma
     p *= p
@@ -515,7 +522,7 @@ def _mixture(z: np.ndarray, z_star: np.ndarray, prm: dict[str, float], shared: _
     p *= shared.peak
     flat_p = p.reshape(-1)  # the scratch is C-contiguous: a view
     zs = z_star.reshape(-1)
-    _divide_by_hit_mass(flat_p, zs, zmax, sigma, shared.lo, shared.hi)
+    _divide_by_hit_mass(flat_p, zs, zmax, sigma, shared.lo, shared.hi, floor.reshape(-1))
     p += flat
     # p_short: its normalizer 1 / (1 - e^{-lambda z*}) only where the reading is short.
     short = np.flatnonzero(z <= z_star)

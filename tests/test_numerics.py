@@ -400,8 +400,15 @@ def test_beam_model_divides_by_the_hit_mass_only_where_it_is_not_one(z_max, sigm
         assert np.all(mass[inside] == 1.0)
         p = rng.uniform(0.0, 5.0, z_star.size)
         got = p.copy()
-        bm._divide_by_hit_mass(got, z_star, z_max, sigma, lo, hi)
+        bm._divide_by_hit_mass(got, z_star, z_max, sigma, lo, hi, 0.0)
         np.testing.assert_array_equal(got, p / mass)
+        # Hit terms skipped below the floor: the same sum once the reading's own terms are
+        # added (terms from far below to far above the floor; flat down to subnormal).
+        flat = rng.choice([1e-320, 1e-300, 1e-3, 0.04, 1.0, 1e300], z_star.size)
+        p = flat * 2.0 ** rng.uniform(-70.0, -40.0, z_star.size)
+        got = p.copy()
+        bm._divide_by_hit_mass(got, z_star, z_max, sigma, lo, hi, flat * bm.HIT_NEGLIGIBLE)
+        np.testing.assert_array_equal(got + flat, p / mass + flat)
 
 
 def test_beam_model_checks_input_in_the_order_of_its_contract():
