@@ -129,6 +129,7 @@ References
 
 from __future__ import annotations
 
+import math
 import os
 import time
 import warnings
@@ -556,6 +557,11 @@ def cast_rays(grid: OccupancyGrid, poses, angles, max_range) -> np.ndarray:
     """
     caster = _caster_for(grid)
     zmax = check_positive("max_range", max_range)
+    # Every point has a map corner at least half the diagonal away (the usual case: no
+    # need to find the poses' farthest corner, a pass over all of them).
+    h, w = grid.shape
+    if zmax <= 0.5 * math.hypot(h, w) * grid.resolution:
+        return caster.cast(poses, angles, zmax)
     p = as_poses("poses", poses)
     reach = _reach(grid, p) if p.shape[0] and np.isfinite(p).all() else np.inf
     if zmax <= reach:

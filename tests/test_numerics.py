@@ -379,6 +379,57 @@ def test_beam_model_hit_mass_skips_erf_only_where_it_is_exactly_one():
         np.testing.assert_allclose(bm._hit_mass(z_star, z_max, sigma), direct, rtol=1e-15)
 
 
+@pytest.mark.parametrize("z_max", [1e-300, 1e-3, 3.0, 1e6, 1e300])
+@pytest.mark.parametrize("sigma", [1e-300, 1e-20, 1e-3, 0.1, 1.0, 1e3, 1e300, 1.7e308])
+def test_beam_model_divides_by_the_hit_mass_only_where_it_is_not_one(z_max, sigma):
+    """The mixture's shortcut: outside [lo, hi] the same bits as dividing by _hit_mass,
+    inside it the mass is exactly 1 (also at the window's ends and one float past them)."""
+    with np.errstate(over="ignore"):  # sigma sqrt 2 overflows for the largest sigma
+        lo, hi = bm._erf_window(z_max, sigma)
+    rng = np.random.default_rng(0)
+    ends = [lo, hi, np.nextafter(lo, -np.inf), np.nextafter(lo, np.inf),
+            np.nextafter(hi, -np.inf), np.nextafter(hi, np.inf)]  # fmt: skip
+    z_star = np.concatenate(
+        [[0.0, z_max, np.nextafter(z_max, 0.0)], np.clip(ends, 0.0, z_max),
+         rng.uniform(0.0, z_max, 500), z_max * rng.uniform(0.0, 1e-6, 100),
+         z_max * (1.0 - rng.uniform(0.0, 1e-6, 100))]
+    )  # fmt: skip
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        mass = bm._hit_mass(z_star, z_max, sigma)
+        inside = (z_star >= lo) & (z_star <= hi)
+        assert np.all(mass[inside] == 1.0)
+        p = rng.uniform(0.0, 5.0, z_star.size)
+        got = p.copy()
+        bm._divide_by_hit_mass(got, z_star, z_max, sigma, lo, hi, 0.0)
+        np.testing.assert_array_equal(got, p / mass)
+        # Hit terms skipped below the floor: the same sum once the reading's own terms are
+        # added (terms from far below to far above the floor; flat down to subnormal).
+        flat = rng.choice([1e-320, 1e-300, 1e-3, 0.04, 1.0, 1e300], z_star.size)
+        p = flat * 2.0 ** rng.uniform(-70.0, -40.0, z_star.size)
+        got = p.copy()
+        bm._divide_by_hit_mass(got, z_star, z_max, sigma, lo, hi, flat * bm.HIT_NEGLIGIBLE)
+        np.testing.assert_array_equal(got + flat, p / mass + flat)
+
+
+def test_beam_model_checks_input_in_the_order_of_its_contract():
+    """The min/max shortcut of the input checks raises what the full checks raise: a
+    non-finite value before a range error, z before z_star, shapes before ranges."""
+    params = {"z_hit": 0.7, "z_short": 0.1, "z_max": 0.1, "z_rand": 0.1,
+              "sigma_hit": 0.2, "lambda_short": 0.5, "max_range": 5.0}  # fmt: skip
+    ok = np.array([1.0, 2.0])
+    cases = [
+        ([1.0, np.nan], [9.0, 1.0], "z must be finite"),
+        ([1.0, 9.0], [np.inf, 1.0], "z_star must be finite"),
+        ([1.0, -np.inf], ok, "z must be finite"),
+        ([1.0, 9.0], [1.0, 2.0, 3.0], "same number of beams"),
+        ([1.0, 9.0], [9.0, 1.0], "z must lie in"),
+        (ok, [-1e-300, 1.0], "z_star must lie in"),
+    ]
+    for z, z_star, message in cases:
+        with pytest.raises(ValueError, match=message):
+            bm.beam_range_finder_model(np.array(z), np.array(z_star), params)
+
+
 @pytest.mark.parametrize("n", [0, 1, 3, 700])
 def test_beam_model_blocks_of_poses_agree_with_the_composed_densities(n, monkeypatch):
     """N poses in blocks (also 0 poses, and blocks that do not divide N): the sum of logs of
