@@ -350,15 +350,19 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
         _, first = np.unique(ids[remaining], return_index=True)
         batch, remaining = remaining[first], np.delete(remaining, first)
         j, z = ids[batch], obs[batch, :2]
-        mu, sigma, known = (np.take(a, j, axis=1) for a in (means, covs, seen))  # (M, b, ...)
-        new_mu, new_sigma, log_like = _blocked_ekf_update(mu, sigma, z[None], poses, qt)
+        whole = len(j) == len(touched)  # then j is 0, 1, ..., n - 1: update in place
+        mu, sigma, known = (a if whole else np.take(a, j, axis=1) for a in (means, covs, seen))
+        log_like = np.empty(known.shape)
+        _blocked_ekf_update(mu, sigma, z, poses, qt, log_like)
         if not known.all():
             init_mu, init_sigma = _landmark_from_observation(z[None], poses[:, None, :], qt)
-            new_mu = np.where(known[..., None], new_mu, init_mu)
-            new_sigma = np.where(known[..., None, None], new_sigma, init_sigma)
-            log_like = np.where(known, log_like, LOG_P0)
-        _check_update((new_mu, new_sigma, log_like), f"observations {obs[batch].tolist()}")
-        means[:, j], covs[:, j], seen[:, j] = new_mu, new_sigma, True
+            np.copyto(mu, init_mu, where=~known[..., None])
+            np.copyto(sigma, init_sigma, where=~known[..., None, None])
+            np.copyto(log_like, LOG_P0, where=~known)
+        _check_update((mu, sigma, log_like), f"observations {obs[batch].tolist()}")
+        if not whole:
+            means[:, j], covs[:, j] = mu, sigma
+        seen[:, j] = True
         log_w = log_w + log_like.sum(axis=1)
     weights = _normalize_log_weights(log_w)
     do_resample = bool(resample) and len(obs) > 0 and (
@@ -499,75 +503,174 @@ def _inv2(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _ekf_update(mu, sigma, zz, p, qt):
-    r"""The body of :func:`update_landmark` on checked arrays (called once per round by the step).
+    r"""The body of :func:`update_landmark` on checked arrays (broadcast; new arrays).
 
-    The batched 2 x 2 products are written out entry by entry: numpy's ``@`` on
-    stacks of 2 x 2 matrices costs several times the arithmetic itself. With
+    Returns ``(new_mean, new_cov, log_likelihood)``, computed by :func:`_ekf_entries`.
+    """
+    shape = np.broadcast_shapes(mu.shape[:-1], sigma.shape[:-2], zz.shape[:-1], p.shape[:-1])
+    new_mean, new_cov, log_like = np.empty(shape + (2,)), np.empty(shape + (2, 2)), np.empty(shape)
+    _ekf_entries(
+        _entries(mu, sigma),
+        (p[..., 0], p[..., 1], p[..., 2], zz[..., 0], zz[..., 1]),
+        qt,
+        _entries(new_mean, new_cov) + (log_like,),
+        np.empty((EKF_WORK,) + shape),
+    )
+    return new_mean, new_cov, log_like
+
+
+def _entries(mean, cov):
+    """Views of the entries ``(mu0, mu1, s00, s01, s10, s11)`` of ``(..., 2)`` and ``(..., 2, 2)``."""
+    return (mean[..., 0], mean[..., 1],
+            cov[..., 0, 0], cov[..., 0, 1], cov[..., 1, 0], cov[..., 1, 1])
+
+
+#: How many scratch arrays :func:`_ekf_entries` takes.
+EKF_WORK = 17
+
+
+def _ekf_entries(landmark, observer, qt, out, work):
+    r"""The EKF update of :func:`update_landmark`, entry by entry, into ``out``.
+
+    ``landmark`` holds the entries ``(mu0, mu1, s00, s01, s10, s11)`` of the
+    means and covariances (:func:`_entries`), ``observer`` the pose and
+    measurement ``(x, y, theta, r, phi)``, all broadcasting to the shape of the
+    ``EKF_WORK`` scratch arrays in ``work``. ``out`` receives the updated entries
+    and the log-likelihood, ``(mu0', mu1', s00', s01', s10', s11', ln w)``, and may
+    be the input entries themselves (an update in place: each input is last read
+    before its output is written).
+
+    The batched 2 x 2 products are written out entry by entry (numpy's ``@`` on
+    stacks of 2 x 2 matrices costs several times the arithmetic itself), each
+    into a scratch array (``out=``: no temporaries to allocate). With
     :math:`H = \begin{pmatrix} a & b \\ c & d \end{pmatrix}` (:func:`h_jacobian`),
     :math:`P = \Sigma H^T`, :math:`Q = H P + Q_t`, :math:`K = P Q^{-1}`,
     :math:`\mu' = \mu + K e`, :math:`\Sigma' = \Sigma - (K H) \Sigma`
     (symmetrized), :math:`\ln w = -\tfrac12 e^T Q^{-1} e - \ln 2\pi - \tfrac12 \ln|Q|`.
     The geometry uses ``hypot`` (no overflow of the squared range) and :math:`Q` is
-    inverted by :func:`_inv2_entries` (scaled: no under- or overflow of its determinant).
+    inverted as :func:`_inv2_entries` does (scaled by its largest entry: no under- or
+    overflow of its determinant), with the same roundings: the negative entries
+    :math:`c = -b/r`, :math:`Q^{-1}_{01}` and :math:`Q^{-1}_{10}` are kept as their
+    magnitudes and subtracted (``x + (-y)`` is ``x - y`` in floating point).
     """
-    dx = mu[..., 0] - p[..., 0]
-    dy = mu[..., 1] - p[..., 1]
-    dist = np.hypot(dx, dy)
+    mu0, mu1, s00, s01, s10, s11 = landmark
+    x, y, theta, r, phi = observer
+    a, b, nc, d, e0, t, u, s, v, p00, p01, p10, p11, q00, q01, q10, q11 = (
+        work[i, ...] for i in range(EKF_WORK)  # 0-d arrays for one pair, not scalars
+    )
     # z_hat = h(mu, x) and H = dh/dmu (the bodies of h and h_jacobian, sharing dx, dy)
-    e0 = zz[..., 0] - dist
-    e1 = wrap_angle(zz[..., 1] - wrap_angle(np.arctan2(dy, dx) - p[..., 2]))
-    safe = dist > 0
-    if safe.all():  # the usual case: no landmark estimate on top of its particle
-        a, b = dx / dist, dy / dist
-    else:
-        a = np.where(safe, dx / np.where(safe, dist, 1.0), 1.0)  # unit direction (x axis at 0)
-        b = np.where(safe, dy / np.where(safe, dist, 1.0), 0.0)
-    rate = np.maximum(dist, np.sqrt(MIN_SQ_RANGE))  # the bearing's rate 1 / r, bounded
-    c, d = -b / rate, a / rate
-    s00, s01, s10, s11 = sigma[..., 0, 0], sigma[..., 0, 1], sigma[..., 1, 0], sigma[..., 1, 1]
+    np.subtract(mu0, x, out=a)  # dx
+    np.subtract(mu1, y, out=b)  # dy
+    np.hypot(a, b, out=d)  # the range
+    np.subtract(r, d, out=e0)
+    np.arctan2(b, a, out=t)
+    np.subtract(t, theta, out=t)
+    e1 = wrap_angle(phi - wrap_angle(t))
+    if d.size and d.min() > 0:  # the usual case: no landmark estimate on top of its particle
+        np.divide(a, d, out=a)
+        np.divide(b, d, out=b)
+    else:  # the unit direction, the x axis at range 0 (NaN fails d > 0 as it does min() > 0)
+        safe = d > 0
+        den = np.where(safe, d, 1.0)
+        a[...] = np.where(safe, a / den, 1.0)
+        b[...] = np.where(safe, b / den, 0.0)
+    np.maximum(d, np.sqrt(MIN_SQ_RANGE), out=d)  # the bearing's rate 1 / r, bounded
+    np.divide(b, d, out=nc)  # c = -nc
+    np.divide(a, d, out=d)
     # P = Sigma H^T
-    p00, p01 = s00 * a + s01 * b, s00 * c + s01 * d
-    p10, p11 = s10 * a + s11 * b, s10 * c + s11 * d
-    # Q = H P + Q_t, inverted after scaling by its largest entry (_inv2_entries)
-    q00 = a * p00 + b * p10 + qt[0, 0]
-    q01 = a * p01 + b * p11 + qt[0, 1]
-    q10 = c * p00 + d * p10 + qt[1, 0]
-    q11 = c * p01 + d * p11 + qt[1, 1]
-    (i00, i01, i10, i11), logdet = _inv2_entries(q00, q01, q10, q11)
+    _sum_of_products(s00, a, s01, b, t, out=p00)
+    _sum_of_products(s01, d, s00, nc, t, out=p01, subtract=True)
+    _sum_of_products(s10, a, s11, b, t, out=p10)
+    _sum_of_products(s11, d, s10, nc, t, out=p11, subtract=True)
+    # Q = H P + Q_t
+    _sum_of_products(a, p00, b, p10, t, out=q00)
+    _sum_of_products(a, p01, b, p11, t, out=q01)
+    _sum_of_products(d, p10, nc, p00, t, out=q10, subtract=True)
+    _sum_of_products(d, p11, nc, p01, t, out=q11, subtract=True)
+    for q, add in ((q00, qt[0, 0]), (q01, qt[0, 1]), (q10, qt[1, 0]), (q11, qt[1, 1])):
+        np.add(q, add, out=q)
+    # Q^-1 as _inv2_entries: scale s, entries q / s, f = 1 / (det s); i01 = -j01, i10 = -j10
+    np.abs(q00, out=s)
+    np.maximum(s, np.abs(q01, out=t), out=s)
+    np.maximum(np.abs(q10, out=t), np.abs(q11, out=u), out=t)
+    np.maximum(s, t, out=s)
+    if not (s.size and s.min() > 0):
+        np.copyto(s, 1.0, where=~(s > 0))
+    for q in (q00, q01, q10, q11):
+        np.divide(q, s, out=q)
+    _sum_of_products(q00, q11, q01, q10, t, out=u, subtract=True)  # det
+    with np.errstate(divide="ignore", invalid="ignore"):
+        np.divide(1.0, np.multiply(u, s, out=t), out=t)  # f
+        i00, i11, j01, j10 = np.multiply(q11, t, out=v), q11, q01, q10
+        np.multiply(q00, t, out=i11)
+        np.multiply(q01, t, out=j01)
+        np.multiply(q10, t, out=j10)
+        logdet = np.log(s, out=s)
+        np.multiply(logdet, 2.0, out=logdet)
+        np.add(logdet, np.log(u, out=u), out=logdet)
     # K = P Q^-1
-    k00, k01 = p00 * i00 + p01 * i10, p00 * i01 + p01 * i11
-    k10, k11 = p10 * i00 + p11 * i10, p10 * i01 + p11 * i11
-    shape = np.broadcast_shapes(mu.shape, sigma.shape[:-1], zz.shape, p.shape[:-1] + (2,))
-    new_mean = np.empty(shape)
-    new_mean[..., 0] = mu[..., 0] + k00 * e0 + k01 * e1
-    new_mean[..., 1] = mu[..., 1] + k10 * e0 + k11 * e1
-    # Sigma' = Sigma - (K H) Sigma, symmetrized
-    m00, m01 = k00 * a + k01 * c, k00 * b + k01 * d
-    m10, m11 = k10 * a + k11 * c, k10 * b + k11 * d
-    new_cov = np.empty(shape + (2,))
-    new_cov[..., 0, 0] = s00 - (m00 * s00 + m01 * s10)
-    new_cov[..., 1, 1] = s11 - (m10 * s01 + m11 * s11)
-    off = 0.5 * ((s01 - (m00 * s01 + m01 * s11)) + (s10 - (m10 * s00 + m11 * s10)))
-    new_cov[..., 0, 1] = off
-    new_cov[..., 1, 0] = off
+    k00, k01, k10, k11 = q00, u, p00, p01
+    _sum_of_products(p00, i00, p01, j10, t, out=k00, subtract=True)
+    _sum_of_products(p01, i11, p00, j01, t, out=k01, subtract=True)
+    _sum_of_products(p10, i00, p11, j10, t, out=k10, subtract=True)
+    _sum_of_products(p11, i11, p10, j01, t, out=k11, subtract=True)
     with np.errstate(over="ignore", invalid="ignore"):  # a huge range: refused by the caller
-        maha = e0 * (i00 * e0 + i01 * e1) + e1 * (i10 * e0 + i11 * e1)
-    log_like = -0.5 * maha - np.log(2.0 * np.pi) - 0.5 * logdet
-    return new_mean, new_cov, log_like
+        maha = _sum_of_products(i00, e0, j01, e1, t, out=p10, subtract=True)
+        np.multiply(maha, e0, out=maha)
+        _sum_of_products(i11, e1, j10, e0, t, out=p11, subtract=True)
+        np.multiply(p11, e1, out=p11)
+        np.add(maha, p11, out=maha)
+    # mu' = mu + K e
+    new_mu0, new_mu1, new_s00, new_s01, new_s10, new_s11, log_like = out
+    np.add(np.add(mu0, np.multiply(k00, e0, out=t), out=t), np.multiply(k01, e1, out=p11),
+           out=new_mu0)
+    np.add(np.add(mu1, np.multiply(k10, e0, out=t), out=t), np.multiply(k11, e1, out=p11),
+           out=new_mu1)
+    np.subtract(np.multiply(maha, -0.5, out=maha), np.log(2.0 * np.pi), out=maha)
+    np.subtract(maha, np.multiply(logdet, 0.5, out=logdet), out=log_like)
+    # Sigma' = Sigma - (K H) Sigma, symmetrized
+    m00, m01, m10, m11 = p10, p11, q01, q10
+    _sum_of_products(k00, a, k01, nc, t, out=m00, subtract=True)
+    _sum_of_products(k00, b, k01, d, t, out=m01)
+    _sum_of_products(k10, a, k11, nc, t, out=m10, subtract=True)
+    _sum_of_products(k10, b, k11, d, t, out=m11)
+    _sum_of_products(m00, s01, m01, s11, t, out=k10)
+    np.subtract(s01, k10, out=k10)
+    _sum_of_products(m10, s00, m11, s10, t, out=k11)
+    np.subtract(s10, k11, out=k11)
+    off = np.multiply(np.add(k10, k11, out=k10), 0.5, out=k10)
+    _sum_of_products(m00, s00, m01, s10, t, out=k00)
+    _sum_of_products(m10, s01, m11, s11, t, out=k01)
+    np.subtract(s00, k00, out=new_s00)
+    np.subtract(s11, k01, out=new_s11)
+    np.copyto(new_s01, off)
+    np.copyto(new_s10, off)
 
 
-def _blocked_ekf_update(mu, sigma, zz, poses, qt):
-    """:func:`_ekf_update` of (M, b) landmarks in blocks of about ``EKF_BLOCK`` particle-landmark
-    pairs: its few dozen temporaries then come from the heap instead of fresh page-faulted maps."""
-    m, b = mu.shape[:2]
+def _sum_of_products(w, x, y, z, tmp, out, subtract=False):
+    """``w x + y z`` (or ``w x - y z``) into ``out``, rounded as numpy's ``w * x + y * z``."""
+    np.multiply(w, x, out=out)
+    np.multiply(y, z, out=tmp)
+    return (np.subtract if subtract else np.add)(out, tmp, out=out)
+
+
+def _blocked_ekf_update(means, covs, z, poses, qt, log_like):
+    """:func:`_ekf_entries` of (M, b) landmarks in place, ``EKF_BLOCK`` particle-landmark pairs
+    at a time: its scratch arrays then stay in the core's cache."""
+    m, b = means.shape[:2]
     per = max(1, EKF_BLOCK // max(b, 1))
-    if per >= m:
-        return _ekf_update(mu, sigma, zz, poses[:, None, :], qt)
-    parts = [
-        _ekf_update(mu[i : i + per], sigma[i : i + per], zz, poses[i : i + per, None, :], qt)
-        for i in range(0, m, per)
-    ]
-    return tuple(np.concatenate(arrays) for arrays in zip(*parts, strict=True))
+    work = np.empty((EKF_WORK, min(per, m), b))
+    for i in range(0, m, per):
+        rows = slice(i, i + per)
+        block = _entries(means[rows], covs[rows])
+        pose = poses[rows, None, :]
+        _ekf_entries(
+            block,
+            (pose[..., 0], pose[..., 1], pose[..., 2], z[:, 0], z[:, 1]),
+            qt,
+            block + (log_like[rows],),
+            work[:, : len(pose)],
+        )
 
 
 def _ess_fraction(resample) -> float | None:
