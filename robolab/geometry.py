@@ -52,16 +52,29 @@ def wrap_angle(angle):
         # x itself on (-2 pi, 2 pi) and x - 2 pi (exact, Sterbenz) on [2 pi, 4 pi).
         # NaN and inf fail the test and take the general path below.
         wrapped = shifted  # a new array: changed in place
-        np.subtract(wrapped, _TWO_PI, out=wrapped, where=wrapped >= _TWO_PI)
-        np.add(wrapped, _TWO_PI, out=wrapped, where=wrapped < 0.0)
+        _add_where(wrapped, -_TWO_PI, wrapped >= _TWO_PI)
+        _add_where(wrapped, _TWO_PI, wrapped < 0.0)
         wrapped -= np.pi
     else:
         if np.isinf(a).any():
             raise ValueError("angle must be finite: an infinite angle has no direction")
         wrapped = shifted % _TWO_PI - np.pi
     # Just below -pi, (a + pi) % 2pi rounds up to 2pi and the result would be +pi.
-    np.subtract(wrapped, _TWO_PI, out=wrapped, where=wrapped >= np.pi)
+    _add_where(wrapped, -_TWO_PI, wrapped >= np.pi)
     return wrapped
+
+
+def _add_where(x: np.ndarray, step: float, mask: np.ndarray) -> None:
+    """``x[mask] += step`` in place, as ``np.add(x, step, out=x, where=mask)`` rounds it.
+
+    Branch-free, ``x + step * mask`` (a masked ufunc mispredicts on a mixed mask:
+    4-5x slower on angles spread over two turns). Where the mask is False this adds
+    ``step * 0``: ``-0.0`` for a negative step, which leaves every ``x`` as it is, and
+    ``+0.0`` for a positive one, which turns ``-0.0`` into ``+0.0``; :func:`wrap_angle`
+    subtracts pi right after its one positive step, giving -pi from either zero.
+    """
+    if mask.any():
+        x += mask * step
 
 
 def angle_diff(a, b):
