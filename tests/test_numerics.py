@@ -310,6 +310,39 @@ def test_fastslam_step_with_a_tiny_qt_stays_finite():
     assert all(np.all(np.isfinite(out[k])) for k in ("poses", "means", "covs", "weights"))
 
 
+@pytest.mark.parametrize("key", ["means", "covs"])
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_fastslam_step_refuses_a_non_finite_landmark_it_does_not_observe(key, bad):
+    state = _state()
+    state[key][3, 2] = bad  # landmark 2 of particle 3; the step observes landmark 1 only
+    with pytest.raises(ValueError, match=rf"state\['{key}'\] must be finite"):
+        fs.fastslam_step(state, [1.0, 0.0], [[2.0, 0.1, 1]], np.eye(3) * 1e-4, QT0,
+                         np.random.default_rng(0))
+
+
+def test_fastslam_step_accepts_finite_landmarks_whose_sum_overflows():
+    state = _state()
+    state["means"][:, 2] = 1e308  # finite, but their sum is not: the full check decides
+    out = fs.fastslam_step(state, [1.0, 0.0], [[2.0, 0.1, 1]], np.eye(3) * 1e-4, QT0,
+                           np.random.default_rng(0))
+    assert np.array_equal(out["means"][:, 2], state["means"][:, 2])
+
+
+def test_fastslam_step_checks_the_noise_it_is_given_at_every_step():
+    q = np.eye(3) * 1e-4
+    args = ([1.0, 0.0], [[2.0, 0.1, 1]])
+    fs.fastslam_step(_state(), *args, q, QT0, np.random.default_rng(0))
+    q[0, 0] = -1.0  # changed in place: checked again
+    with pytest.raises(ValueError, match="Q must be positive semi-definite"):
+        fs.fastslam_step(_state(), *args, q, QT0, np.random.default_rng(0))
+    q[0, 0] = 4e-4
+    a = fs.fastslam_step(_state(), *args, q, QT0, np.random.default_rng(0))
+    b = fs.fastslam_step(_state(), *args, q.copy() + 0.0, QT0, np.random.default_rng(0))
+    assert np.array_equal(a["poses"], b["poses"])
+    with pytest.raises(ValueError, match="Qt must be symmetric"):
+        fs.fastslam_step(_state(), *args, q, [[1.0, 0.5], [0.0, 1.0]], np.random.default_rng(0))
+
+
 # -- EKF mapping ----------------------------------------------------------------------------
 @pytest.mark.parametrize("bad", ["P", "Q", "R"])
 def test_ekf_mapping_step_refuses_an_indefinite_covariance(bad):
