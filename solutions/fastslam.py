@@ -369,10 +369,10 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
     for key, part in (("means", means), ("covs", covs), ("seen", seen)):
         if isinstance(idx, slice):
             new[key] = s[key].copy()
-            new[key][:, touched] = part
+            _pairs(new[key])[:, touched] = _pairs(part)
         else:  # np.take copies whole rows: faster than the fancy index [idx]
             new[key] = np.take(s[key], idx, axis=0)
-            new[key][:, touched] = np.take(part, idx, axis=0)
+            _pairs(new[key])[:, touched] = np.take(_pairs(part), idx, axis=0)
     new["weights"] = weights if isinstance(idx, slice) else np.full(len(poses), 1.0 / len(poses))
     return new
 
@@ -562,7 +562,8 @@ def _ekf_entries(landmark, observer, qt, out, work):
     np.arctan2(b, a, out=t)
     np.subtract(t, theta, out=t)
     e1 = wrap_angle(phi - wrap_angle(t))
-    if d.size and d.min() > 0:  # the usual case: no landmark estimate on top of its particle
+    nearest = d.min() if d.size else np.inf  # NaN if a range is: fails both tests below
+    if nearest > 0:  # the usual case: no landmark estimate on top of its particle
         np.divide(a, d, out=a)
         np.divide(b, d, out=b)
     else:  # the unit direction, the x axis at range 0 (NaN fails d > 0 as it does min() > 0)
@@ -570,7 +571,8 @@ def _ekf_entries(landmark, observer, qt, out, work):
         den = np.where(safe, d, 1.0)
         a[...] = np.where(safe, a / den, 1.0)
         b[...] = np.where(safe, b / den, 0.0)
-    np.maximum(d, np.sqrt(MIN_SQ_RANGE), out=d)  # the bearing's rate 1 / r, bounded
+    if not nearest >= np.sqrt(MIN_SQ_RANGE):
+        np.maximum(d, np.sqrt(MIN_SQ_RANGE), out=d)  # the bearing's rate 1 / r, bounded
     np.divide(b, d, out=nc)  # c = -nc
     np.divide(a, d, out=d)
     # P = Sigma H^T
@@ -669,6 +671,12 @@ def _blocked_ekf_update(means, covs, z, poses, qt, log_like):
         )
 
 
+def _pairs(a: np.ndarray) -> np.ndarray:
+    """A C-contiguous float array (M, K, 2, ...) viewed as complex (M, K, ...), one element per
+    pair of floats (fancy indexing then moves half as many elements); bool arrays as they are."""
+    return a.view(np.complex128)[..., 0] if a.dtype == np.float64 else a
+
+
 def _ess_fraction(resample) -> float | None:
     """None for ``resample`` True / False (always / never), else the ESS fraction in (0, 1]."""
     if isinstance(resample, (bool, np.bool_)):
@@ -684,7 +692,11 @@ def _ess_fraction(resample) -> float | None:
 def _check_update(update, what) -> None:
     """Raise if an EKF update or initialization left the range of float64."""
     mean, cov, log_like = update
-    if not (np.isfinite(mean).all() and np.isfinite(cov).all() and not np.isnan(log_like).any()):
+    with np.errstate(over="ignore", invalid="ignore"):  # finite sums: finite terms (as _finite)
+        quick = np.isfinite(mean.sum()) and np.isfinite(cov.sum()) and not np.isnan(log_like.sum())
+    if not quick and not (
+        np.isfinite(mean).all() and np.isfinite(cov).all() and not np.isnan(log_like).any()
+    ):
         raise ValueError(
             f"{what}: the landmark estimate is not finite in float64 (a range or covariance "
             f"too large or too small for the landmark's mean and covariance)"
