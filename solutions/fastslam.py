@@ -355,10 +355,11 @@ def fastslam_step(state, command, observations, Q, Qt, rng, dt=DT, resample=True
             np.copyto(mu, init_mu, where=~known[..., None])
             np.copyto(sigma, init_sigma, where=~known[..., None, None])
             np.copyto(log_like, LOG_P0, where=~known)
-        _check_update((mu, sigma, log_like), f"observations {obs[batch].tolist()}")
-        if not whole:
-            means[:, j], covs[:, j] = mu, sigma
-        seen[:, j] = True
+        _check_update((mu, sigma, log_like), lambda: f"observations {obs[batch].tolist()}")
+        if whole:
+            seen[...] = True
+        else:
+            means[:, j], covs[:, j], seen[:, j] = mu, sigma, True
         log_w = log_w + log_like.sum(axis=1)
     weights = _normalize_log_weights(log_w)
     do_resample = bool(resample) and len(obs) > 0 and (
@@ -690,13 +691,17 @@ def _ess_fraction(resample) -> float | None:
 
 
 def _check_update(update, what) -> None:
-    """Raise if an EKF update or initialization left the range of float64."""
+    """Raise if an EKF update or initialization left the range of float64.
+
+    ``what`` names the update in the message: a string, or a callable that makes it.
+    """
     mean, cov, log_like = update
     with np.errstate(over="ignore", invalid="ignore"):  # finite sums: finite terms (as _finite)
         quick = np.isfinite(mean.sum()) and np.isfinite(cov.sum()) and not np.isnan(log_like.sum())
     if not quick and not (
         np.isfinite(mean).all() and np.isfinite(cov).all() and not np.isnan(log_like).any()
     ):
+        what = what() if callable(what) else what
         raise ValueError(
             f"{what}: the landmark estimate is not finite in float64 (a range or covariance "
             f"too large or too small for the landmark's mean and covariance)"
