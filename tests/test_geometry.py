@@ -85,6 +85,21 @@ def test_wrap_angle_just_below_minus_pi_stays_in_range():
     assert np.all((w_arr >= -PI) & (w_arr < PI)), w_arr
 
 
+@pytest.mark.parametrize("spread", [1e-15, 0.01, PI, 2 * PI, 3 * PI])
+@pytest.mark.parametrize("centre", [-2 * PI, -PI, 0.0, PI, 2 * PI, 3 * PI])
+def test_wrap_angle_is_numpys_remainder_bit_for_bit(centre, spread):
+    """The in-range path (sparse masks: masked ufuncs; mixed: branch-free) gives the bits of
+    the plain formula ``(a + pi) % 2pi - pi`` (and ``- 2pi`` at +pi), -0.0 included."""
+    rng = np.random.default_rng(int(1000 * (centre + 10) + 10 * spread))
+    a = centre + rng.uniform(-spread, spread, 50_000)
+    a[:4] = [-0.0, 0.0, np.nextafter(-PI, -np.inf), np.nextafter(PI, -np.inf)]
+    expected = np.remainder(a + np.pi, 2.0 * np.pi) - np.pi
+    expected = np.where(expected >= np.pi, expected - 2.0 * np.pi, expected)
+    w = wrap_angle(a)
+    np.testing.assert_array_equal(w, expected)
+    np.testing.assert_array_equal(np.signbit(w), np.signbit(expected))
+
+
 def test_angle_diff_is_shortest_signed_arc():
     assert angle_diff(0.1, -0.1) == pytest.approx(0.2)
     assert angle_diff(PI - 0.1, -PI + 0.1) == pytest.approx(-0.2)
