@@ -9,7 +9,9 @@ particles x 60 beams, and the FastSLAM step at 1000 particles x 100 landmarks. T
 modules use this checkout's other library modules (the compiled field sum, the table
 cache), so the figures are those of the changed modules alone.
 
-Run: ``python benchmarks/before_after.py OLD`` (without ``OLD`` it prints this line and exits).
+Run: ``python benchmarks/before_after.py OLD`` (without ``OLD`` it prints this line and exits);
+``python benchmarks/before_after.py OLD fastslam``: the FastSLAM step alone, over 100 steps,
+best of 15 rounds.
 """
 
 from __future__ import annotations
@@ -98,8 +100,8 @@ def mcl_rows(old_mcl, old_lpf):
     return rows
 
 
-def fastslam_rows(old_fs):
-    m, k, n_steps, rounds = FASTSLAM
+def fastslam_rows(old_fs, sizes=FASTSLAM):
+    m, k, n_steps, rounds = sizes
     run = FiducialRobot(seed=0, n_fiducials=k, n_steps=n_steps).to_run()
     steps = [(run.commands[t], run.observations(t)) for t in range(n_steps)]
     rng = np.random.default_rng(5)
@@ -129,7 +131,10 @@ def main() -> None:
         return
     pinned = timing.pin_to_one_core()
     old_mcl, old_lpf, old_fs = old_modules(Path(sys.argv[1]).resolve())
-    rows = mcl_rows(old_mcl, old_lpf) + fastslam_rows(old_fs)
+    if sys.argv[2:] == ["fastslam"]:
+        rows = fastslam_rows(old_fs, timing.sized((1000, 100, 100, 15), FASTSLAM))
+    else:
+        rows = mcl_rows(old_mcl, old_lpf) + fastslam_rows(old_fs)
     print(f"before ({sys.argv[1]}) / after (this checkout), same bits checked; {pinned}; "
           f"{timing.load_average()}; process CPU time, interleaved, best of the rounds")
     print(f"{'what':36s} {'before [ms]':>12s} {'after [ms]':>11s} {'before/after':>13s}")
