@@ -92,6 +92,16 @@ def test_pose_table_sum_numpy_path_matches_the_loop(n):
     )
 
 
+def test_pose_table_sum_numpy_path_in_chunks_of_poses(monkeypatch):
+    args = pose_problem(40, seed=4)
+    whole = fieldsum.pose_table_sum(*args, backend="numpy")
+    monkeypatch.setattr(fieldsum, "BLOCK", 2 * 9)  # 2 poses of 9 beams per block
+    monkeypatch.setattr(fieldsum, "POSE_BLOCKS", 3)  # chunks of 6 poses, the last one partial
+    chunked = fieldsum.pose_table_sum(*args, backend="numpy")
+    np.testing.assert_array_equal(chunked, whole)
+    np.testing.assert_array_equal(chunked, pose_brute_force(*args))
+
+
 @pytest.mark.skipif(raycast._jit() is None, reason="numba unavailable")
 @pytest.mark.parametrize("n", [1, 40, 3000])
 def test_fused_kernel_gives_the_numpy_paths_bits(n):
