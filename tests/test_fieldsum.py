@@ -92,6 +92,25 @@ def test_pose_table_sum_numpy_path_matches_the_loop(n):
     )
 
 
+def test_laser_cells_are_compose_then_world_to_map_bit_for_bit():
+    """The numpy path's in-place laser poses: compose's and world_to_map's bits, also for
+    poses at the float limits and NaN (their endpoints must land where the kernel's do)."""
+    from robolab.geometry import compose
+
+    _, poses, laser, geometry, _, _ = pose_problem(300, seed=8)
+    poses[0, :2] = 1.7e308
+    poses[1] = [1e308, -1e308, 1e300]
+    poses[2, 0] = poses[3, 2] = np.nan
+    with np.errstate(all="ignore"):
+        lp = compose(poses, laser)
+        uv = geometry.world_to_map(lp[:, :2]).astype(f32) + f32(1)
+        phi = lp[:, 2] - geometry.origin[2]
+        got = fieldsum._laser_cells(poses, laser, geometry)
+    for want, have in zip((uv, np.cos(phi).astype(f32), np.sin(phi).astype(f32)), got):
+        assert have.dtype == want.dtype
+        np.testing.assert_array_equal(have, want)  # NaN where NaN
+
+
 def test_pose_table_sum_numpy_path_in_chunks_of_poses(monkeypatch):
     args = pose_problem(40, seed=4)
     whole = fieldsum.pose_table_sum(*args, backend="numpy")
