@@ -477,8 +477,9 @@ def normalize_log_weights(logw):
         raise ValueError("logw must not contain NaN or +inf")
     if not np.isfinite(top):
         raise ValueError("logw is -inf everywhere: every particle has zero weight")
-    w = np.exp(lw - top)
-    return w / w.sum()
+    w = np.exp(np.subtract(lw, top), out=np.empty_like(lw))  # one new array, changed in place
+    w /= w.sum()
+    return w
 
 
 # ----------------------------------------------------------------------------------------------
@@ -556,7 +557,8 @@ def mcl_step(particles, weights, odom_prev, odom_now, scan, field, params, rng):
     )
     logw = likelihood_field_model(scan, predicted, field, prm)
     with np.errstate(divide="ignore"):
-        w = normalize_log_weights(np.log(w) + logw)
+        logw += np.log(w, out=w)  # both arrays are this step's own
+    w = normalize_log_weights(logw)
     if (int(prm["update_count"]) + 1) % int(interval) == 0:
         predicted = low_variance_resample(predicted, w, rng)
         w = np.full(p.shape[0], 1.0 / p.shape[0])
