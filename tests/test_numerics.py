@@ -161,26 +161,6 @@ def test_motion_model_in_blocks_gives_the_whole_arrays_bits(corrected, monkeypat
     np.testing.assert_array_equal(got, want)
 
 
-@pytest.mark.parametrize("n", [1, 2, 3, 10, 997, 20_000])
-def test_resampler_pointer_search_is_searchsorted(n):
-    """The O(N) search of the low-variance resampler: np.searchsorted's indices, including
-    weights of 0 (repeated c), one dominant weight, and c ending a hair off 1."""
-    from solutions.landmark_pf import _searchsorted_pointers
-
-    rng = np.random.default_rng(n)
-    for power in (0.0, 1.0, 8.0, 60.0):  # 0: equal weights, c_i on the pointers
-        w = rng.random(n) ** power
-        if power:
-            w[rng.random(n) < 0.3] = 0.0
-        w[0] += 1e-300  # not all zero
-        c = np.cumsum(w / w.sum())
-        for r in (0.0, rng.uniform(0, 1 / n), np.nextafter(1 / n, 0)):
-            pointers = np.arange(n, dtype=float) / n + r
-            np.testing.assert_array_equal(
-                _searchsorted_pointers(c, pointers, r), np.searchsorted(c, pointers, "right")
-            )
-
-
 @pytest.mark.parametrize("spread", MAGNITUDES)
 def test_normalize_log_weights_sums_to_one_at_any_spread(spread):
     w = mcl.normalize_log_weights(np.array([-spread, 0.0, spread, spread]))
