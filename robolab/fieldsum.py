@@ -119,9 +119,10 @@ def numpy_table_sum(table, uv, c, s, qx, qy):
             np.multiply(cs, qy, out=tt)
             vv += tt
             vv += v0[i : i + k]
-            # clip into the border; floor == truncation for u >= 0
-            np.clip(uu, 0, hi_u, out=uu)
-            np.clip(vv, 0, hi_v, out=vv)
+            # clip into the border; floor == truncation for u >= 0 (the method: np.clip's
+            # wrappers cost twice its call)
+            uu.clip(0, hi_u, out=uu)
+            vv.clip(0, hi_v, out=vv)
             np.copyto(ii, vv, casting="unsafe")
             ii *= np.int32(cols)
             np.copyto(cc, uu, casting="unsafe")  # tt is free: its bytes hold the columns
