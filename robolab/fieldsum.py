@@ -32,7 +32,7 @@ import warnings
 import numpy as np
 
 from robolab import raycast
-from robolab.geometry import compose, wrap_angle
+from robolab.geometry import wrap_angle
 
 __all__ = ["table_sum", "numpy_table_sum", "pose_table_sum"]
 
@@ -195,9 +195,9 @@ def _laser_cells(poses, laser, geometry):
     """The laser's map coordinates plus one (float32, (N, 2)) and its heading's cosine and
     sine in the map (float32), for poses ``(N, 3)``.
 
-    :func:`compose`, then ``world_to_map``, as the fused kernel does them: every float64
-    operation of theirs in their order (so the same bits), written in place into three
-    (N,) arrays instead of their twenty-odd temporaries and stacks.
+    :func:`robolab.geometry.compose`, then ``world_to_map``, as the fused kernel does
+    them: every float64 operation of theirs in their order (so the same bits), written
+    in place into three (N,) arrays instead of their twenty-odd temporaries and stacks.
     """
     lx, ly, lt = laser
     ox, oy, oyaw = geometry.origin

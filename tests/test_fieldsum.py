@@ -106,7 +106,7 @@ def test_laser_cells_are_compose_then_world_to_map_bit_for_bit():
         uv = geometry.world_to_map(lp[:, :2]).astype(f32) + f32(1)
         phi = lp[:, 2] - geometry.origin[2]
         got = fieldsum._laser_cells(poses, laser, geometry)
-    for want, have in zip((uv, np.cos(phi).astype(f32), np.sin(phi).astype(f32)), got):
+    for want, have in zip((uv, np.cos(phi).astype(f32), np.sin(phi).astype(f32)), got, strict=True):
         assert have.dtype == want.dtype
         np.testing.assert_array_equal(have, want)  # NaN where NaN
 

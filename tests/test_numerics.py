@@ -146,14 +146,23 @@ def test_motion_model_in_blocks_gives_the_whole_arrays_bits(corrected, monkeypat
         n1 = min(abs(mcl.angle_diff(rot1, 0.0)), abs(mcl.angle_diff(rot1, np.pi)))
         n2 = min(abs(mcl.angle_diff(rot2, 0.0)), abs(mcl.angle_diff(rot2, np.pi)))
     a = np.asarray(alphas)
-    sd = np.sqrt([a[0] * n1**2 + a[1] * trans**2, a[2] * trans**2 + a[3] * (n1**2 + n2**2),
-                  a[0] * n2**2 + a[1] * trans**2])
+    sd = np.sqrt(
+        [
+            a[0] * n1**2 + a[1] * trans**2,
+            a[2] * trans**2 + a[3] * (n1**2 + n2**2),
+            a[0] * n2**2 + a[1] * trans**2,
+        ]
+    )
     noise = np.random.default_rng(3).standard_normal((23, 3)) * sd
     heading = particles[:, 2] + (rot1 - noise[:, 0])
     tr = trans - noise[:, 1]
-    want = np.column_stack([particles[:, 0] + tr * np.cos(heading),
-                            particles[:, 1] + tr * np.sin(heading),
-                            mcl.wrap_angle(heading + (rot2 - noise[:, 2]))])
+    want = np.column_stack(
+        [
+            particles[:, 0] + tr * np.cos(heading),
+            particles[:, 1] + tr * np.sin(heading),
+            mcl.wrap_angle(heading + (rot2 - noise[:, 2])),
+        ]
+    )
     monkeypatch.setattr(mcl, "MOTION_BLOCK", 5)  # several blocks, the last one partial
     got = mcl.sample_motion_model_odometry(
         particles, prev, now, alphas, np.random.default_rng(3), corrected=corrected
