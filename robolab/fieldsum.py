@@ -204,6 +204,15 @@ def _laser_cells(poses, laser, geometry):
     co, so = np.cos(oyaw), np.sin(oyaw)  # as world_to_map computes them
     heading = poses[:, 2]
     c, s = np.cos(heading), np.sin(heading)
+    phi = wrap_angle(heading + lt)  # compose's heading, then minus the map's yaw
+    phi -= oyaw
+    if np.array_equal(phi.view(np.int64), heading.view(np.int64)):
+        # The same angles, bit for bit (a laser and a map not turned, headings wrapped
+        # already, as the motion model leaves them): the same cosines, two fewer per
+        # pose (the C library's, 10-12 ns each)
+        cos_phi, sin_phi = c.astype(np.float32), s.astype(np.float32)
+    else:
+        cos_phi, sin_phi = np.cos(phi).astype(np.float32), np.sin(phi).astype(np.float32)
     x, y, tmp = np.multiply(c, lx), np.multiply(s, lx), np.multiply(s, ly)
     x += poses[:, 0]  # compose: x + c lx - s ly, y + s lx + c ly
     x -= tmp
@@ -221,9 +230,7 @@ def _laser_cells(poses, laser, geometry):
     uv = np.empty((poses.shape[0], 2), np.float32)
     uv[:, 0], uv[:, 1] = u, v
     uv += np.float32(1.0)  # the border
-    phi = wrap_angle(np.add(heading, lt, out=x))  # compose's heading
-    phi -= oyaw
-    return uv, np.cos(phi).astype(np.float32), np.sin(phi).astype(np.float32)
+    return uv, cos_phi, sin_phi
 
 
 _FUSED = []
