@@ -477,7 +477,8 @@ def normalize_log_weights(logw):
         raise ValueError("logw must not contain NaN or +inf")
     if not np.isfinite(top):
         raise ValueError("logw is -inf everywhere: every particle has zero weight")
-    w = np.exp(np.subtract(lw, top), out=np.empty_like(lw))  # one new array, changed in place
+    w = np.subtract(lw, top)  # one new array, changed in place
+    np.exp(w, out=w)
     w /= w.sum()
     return w
 
@@ -557,7 +558,7 @@ def mcl_step(particles, weights, odom_prev, odom_now, scan, field, params, rng):
     )
     logw = likelihood_field_model(scan, predicted, field, prm)
     with np.errstate(divide="ignore"):
-        logw += np.log(w, out=w)  # both arrays are this step's own
+        logw = np.add(np.log(w, out=w), logw, out=w)  # w is this step's own copy
     w = normalize_log_weights(logw)
     if (int(prm["update_count"]) + 1) % int(interval) == 0:
         predicted = low_variance_resample(predicted, w, rng)
