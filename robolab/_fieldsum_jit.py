@@ -1,7 +1,7 @@
 """The compiled kernel of :func:`robolab.fieldsum.pose_table_sum` (numba, one core).
 
-Imported lazily by :mod:`robolab.fieldsum`, only when :mod:`robolab.raycast`'s
-compiled kernels load (so ``ROBOLAB_RAYCAST=numpy`` keeps numba out here too).
+Imported lazily by :mod:`robolab.fieldsum` on its own, without the ray casters of
+:mod:`robolab._raycast_jit` (``ROBOLAB_RAYCAST=numpy`` keeps numba out here too).
 
 One pass per pose, with no (N, B) and no (N,) temporaries: the laser's pose
 (:func:`robolab.geometry.compose`), its map coordinates

@@ -23,10 +23,18 @@ forces numpy): a compiled kernel (:func:`robolab._raycast_jit.table_sum`, one fu
 pass) and numpy in cache-sized blocks of particles. Both compute the endpoints in
 float32 with the same operations, so they look up the same cells, and both add the
 B values in beam order in float64: the two paths give the same bits.
+
+:func:`pose_table_sum` (MCL's likelihood field) needs only its own kernel
+(:mod:`robolab._fieldsum_jit`): its default path asks whether that kernel loads, not
+:func:`robolab.raycast.default_backend`, which would also load (or, with an empty
+numba cache, compile: about 3.4 s of CPU) the ray casters, which MCL never calls.
+Its arrays go to the kernel as read-only views, so numba compiles (and caches) one
+signature whatever the caller's arrays' flags.
 """
 
 from __future__ import annotations
 
+import os
 import warnings
 
 import numpy as np
@@ -139,7 +147,9 @@ def pose_table_sum(table, poses, laser, geometry, qx, qy, backend=None):
     qx, qy : numpy.ndarray, shape (B,), float32
         The beam endpoints in the laser frame, cells.
     backend : {"numba", "numpy"}, optional
-        Default: :func:`robolab.raycast.default_backend`.
+        Default: ``"numba"`` when the fused kernel loads (``ROBOLAB_RAYCAST`` as for
+        :func:`robolab.raycast.default_backend`: ``numpy`` forces numpy, ``numba``
+        requires numba), else ``"numpy"``. The ray casters are not loaded.
 
     Returns
     -------
@@ -148,7 +158,7 @@ def pose_table_sum(table, poses, laser, geometry, qx, qy, backend=None):
         C library's (x86-64 without AVX-512; tested): elsewhere an endpoint within a
         rounding of a cell boundary may fall in the neighbouring cell.
     """
-    backend = backend or raycast.default_backend()
+    backend = backend or _pose_default_backend()
     if backend not in FIELDSUM_BACKENDS:
         raise ValueError(f"backend must be one of {FIELDSUM_BACKENDS}, got {backend!r}")
     poses = np.ascontiguousarray(poses, dtype=float)
@@ -164,34 +174,69 @@ def pose_table_sum(table, poses, laser, geometry, qx, qy, backend=None):
             backend=backend,
         )
     table = np.ascontiguousarray(table, dtype=np.float32)
-    origin = np.asarray(geometry.origin, dtype=float)
+    origin = np.ascontiguousarray(geometry.origin, dtype=float)
     rot = np.array([np.cos(origin[2]), np.sin(origin[2])])  # as world_to_map computes them
     out = np.empty(poses.shape[0])
+    qx = np.ascontiguousarray(qx, dtype=np.float32)
+    qy = np.ascontiguousarray(qy, dtype=np.float32)
     kernel(
-        table.ravel(), *table.shape, poses, laser, origin, rot, float(geometry.resolution),
-        np.ascontiguousarray(qx, dtype=np.float32), np.ascontiguousarray(qy, dtype=np.float32),
-        out,
+        *map(_readonly, (table.ravel(), *table.shape, poses, laser, origin, rot)),
+        float(geometry.resolution), _readonly(qx), _readonly(qy), out,
     )
     return out
+
+
+def _readonly(a):
+    """A read-only view of array ``a`` (anything else as it is): numba types an array by
+    its flags too, and one signature means one compilation (a cold cache compiled the
+    kernel twice: for the warm-up's writeable arrays and for a frozen table)."""
+    if not isinstance(a, np.ndarray):
+        return a
+    view = a.view()
+    view.flags.writeable = False
+    return view
+
+
+def _pose_default_backend() -> str:
+    """:func:`pose_table_sum`'s default: ``"numba"`` when its fused kernel loads.
+
+    ``ROBOLAB_RAYCAST`` as :func:`robolab.raycast.default_backend` reads it, without
+    loading the ray casters.
+    """
+    choice = os.environ.get("ROBOLAB_RAYCAST", "").strip().lower()
+    if choice and choice not in raycast.BACKENDS:
+        raise ValueError(f"ROBOLAB_RAYCAST must be one of {raycast.BACKENDS}, got {choice!r}")
+    if _fused() is not None:
+        return "numba"
+    if choice == "numba":
+        raise ImportError("ROBOLAB_RAYCAST=numba but numba cannot be imported (pip install numba)")
+    return "numpy"
 
 
 _FUSED = []
 
 
 def _fused():
-    """The compiled :func:`robolab._fieldsum_jit.pose_table_sum`, or None without numba."""
+    """The compiled :func:`robolab._fieldsum_jit.pose_table_sum`, or None without numba.
+
+    Only this kernel: the ray casters (:func:`robolab.raycast._jit`) stay unloaded.
+    ``ROBOLAB_RAYCAST=numpy`` keeps numba out, as it does for the casters.
+    """
     if not _FUSED:
         kernel = None
-        if raycast._jit() is not None:  # numba works and ROBOLAB_RAYCAST is not numpy
+        if raycast._JIT is not None and (  # None: numba was tried and is unusable
+            os.environ.get("ROBOLAB_RAYCAST", "").strip().lower() != "numpy"
+        ):
             try:
                 from robolab import _fieldsum_jit
 
                 kernel = _fieldsum_jit.pose_table_sum
                 # compile (or load from numba's cache) now, on a tiny table, so that a
-                # broken numba falls back here and not in the middle of a filter
-                one, out = np.ones(1, np.float32), np.empty(1)
-                kernel(one, 1, 1, np.zeros((1, 3)), np.zeros(3), np.zeros(3), np.array([1.0, 0.0]),
-                       1.0, one, one, out)
+                # broken numba falls back here and not in the middle of a filter; with
+                # read-only arrays like every call's (the one signature, _readonly)
+                one = _readonly(np.ones(1, np.float32))
+                args = (one, 1, 1, np.zeros((1, 3)), np.zeros(3), np.zeros(3), np.array([1.0, 0.0]))
+                kernel(*map(_readonly, args), 1.0, one, one, np.empty(1))
             except Exception as exc:  # noqa: BLE001 - any failure of numba means: the numpy path
                 warnings.warn(
                     f"robolab.fieldsum: the fused kernel is unavailable ({exc!r}); "
