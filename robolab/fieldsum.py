@@ -28,8 +28,9 @@ B values in beam order in float64: the two paths give the same bits.
 (:mod:`robolab._fieldsum_jit`): its default path asks whether that kernel loads, not
 :func:`robolab.raycast.default_backend`, which would also load (or, with an empty
 numba cache, compile: about 3.4 s of CPU) the ray casters, which MCL never calls.
-Its arrays go to the kernel as read-only views, so numba compiles (and caches) one
-signature whatever the caller's arrays' flags.
+The kernel has one explicit signature with read-only inputs
+(:data:`robolab._fieldsum_jit.SIGNATURE`), so numba compiles (and caches) one version
+whatever the flags of the caller's arrays.
 """
 
 from __future__ import annotations
@@ -177,24 +178,12 @@ def pose_table_sum(table, poses, laser, geometry, qx, qy, backend=None):
     origin = np.ascontiguousarray(geometry.origin, dtype=float)
     rot = np.array([np.cos(origin[2]), np.sin(origin[2])])  # as world_to_map computes them
     out = np.empty(poses.shape[0])
-    qx = np.ascontiguousarray(qx, dtype=np.float32)
-    qy = np.ascontiguousarray(qy, dtype=np.float32)
     kernel(
-        *map(_readonly, (table.ravel(), *table.shape, poses, laser, origin, rot)),
-        float(geometry.resolution), _readonly(qx), _readonly(qy), out,
+        table.ravel(), *table.shape, poses, laser, origin, rot, float(geometry.resolution),
+        np.ascontiguousarray(qx, dtype=np.float32), np.ascontiguousarray(qy, dtype=np.float32),
+        out,
     )
     return out
-
-
-def _readonly(a):
-    """A read-only view of array ``a`` (anything else as it is): numba types an array by
-    its flags too, and one signature means one compilation (a cold cache compiled the
-    kernel twice: for the warm-up's writeable arrays and for a frozen table)."""
-    if not isinstance(a, np.ndarray):
-        return a
-    view = a.view()
-    view.flags.writeable = False
-    return view
 
 
 def _pose_default_backend() -> str:
@@ -231,12 +220,12 @@ def _fused():
                 from robolab import _fieldsum_jit
 
                 kernel = _fieldsum_jit.pose_table_sum
-                # compile (or load from numba's cache) now, on a tiny table, so that a
-                # broken numba falls back here and not in the middle of a filter; with
-                # read-only arrays like every call's (the one signature, _readonly)
-                one = _readonly(np.ones(1, np.float32))
-                args = (one, 1, 1, np.zeros((1, 3)), np.zeros(3), np.zeros(3), np.array([1.0, 0.0]))
-                kernel(*map(_readonly, args), 1.0, one, one, np.empty(1))
+                # compiled (or loaded from numba's cache) by the import, for its one
+                # signature; run it on a tiny table, so that a broken numba falls back
+                # here and not in the middle of a filter
+                one, out = np.ones(1, np.float32), np.empty(1)
+                kernel(one, 1, 1, np.zeros((1, 3)), np.zeros(3), np.zeros(3), np.array([1.0, 0.0]),
+                       1.0, one, one, out)
             except Exception as exc:  # noqa: BLE001 - any failure of numba means: the numpy path
                 warnings.warn(
                     f"robolab.fieldsum: the fused kernel is unavailable ({exc!r}); "
