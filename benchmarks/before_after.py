@@ -6,8 +6,10 @@ the change) as separate modules next to this checkout's, checks that both give t
 same particles, weights and maps bit for bit, and times them interleaved in one process
 (best of N rounds, process CPU time): MCL's step and its parts at 5 000 and 100 000
 particles x 60 beams, and the FastSLAM step at 1000 particles x 100 landmarks. The old
-modules use this checkout's other library modules (the compiled field sum, the table
-cache), so the figures are those of the changed modules alone.
+modules use this checkout's other library modules (the compiled kernels, the table cache)
+but the other checkout's ``robolab/fieldsum.py`` when it has one, so the figures are those
+of the changed modules alone. With ``ROBOLAB_RAYCAST=numpy`` both sides run the numpy
+path (the grading worker's).
 
 Run: ``python benchmarks/before_after.py OLD`` (without ``OLD`` it prints this line and exits).
 """
@@ -44,12 +46,18 @@ def _load(path: Path, name: str):
 
 
 def old_modules(old: Path):
-    """The other checkout's mcl, landmark_pf and fastslam, using its own geometry."""
+    """The other checkout's mcl, landmark_pf and fastslam, using its own geometry (and
+    its own field sum, for MCL's look-up, when it has one)."""
     geometry = _load(old / "robolab" / "geometry.py", "old_geometry")
     resample = _load(old / "solutions" / "landmark_pf.py", "old_landmark_pf")
     old_mcl = _load(old / "solutions" / "mcl.py", "old_mcl")
     old_fs = _load(old / "solutions" / "fastslam.py", "old_fastslam")
-    for module in (old_mcl, old_fs, resample):
+    modules = [old_mcl, old_fs, resample]
+    if (old / "robolab" / "fieldsum.py").exists() and hasattr(old_mcl, "pose_table_sum"):
+        fieldsum = _load(old / "robolab" / "fieldsum.py", "old_fieldsum")
+        old_mcl.pose_table_sum = fieldsum.pose_table_sum
+        modules.append(fieldsum)
+    for module in modules:
         for name in ("wrap_angle", "compose", "angle_diff"):
             if hasattr(module, name):
                 setattr(module, name, getattr(geometry, name))

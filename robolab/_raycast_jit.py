@@ -210,7 +210,7 @@ def _prefetch(typingctx, array, index):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def cast(fields, uv, heading, angles, limit, h, w, res, zmax):  # pragma: no cover - compiled
+def cast(fields, poses, frame, angles, limit, h, w, res, zmax):  # pragma: no cover - compiled
     """Ranges in metres: ``min(t res, zmax)`` where a ray enters an obstacle, else ``zmax``.
 
     Parameters
@@ -218,10 +218,14 @@ def cast(fields, uv, heading, angles, limit, h, w, res, zmax):  # pragma: no cov
     fields : uint8 array, shape (4, h + 2, w + 2) or (8, h + 2, w + 2)
         :func:`quadrant_fields` or :func:`octant_fields` of the map padded by one free
         cell on every side (the step is the same for both).
-    uv : float array, shape (N, 2)
-        Ray origins in continuous map coordinates (cells, unpadded).
-    heading : float array, shape (N,)
-        Heading of each pose in the map frame (radians).
+    poses : float array, shape (N, 3)
+        Sensor poses ``(x, y, theta)`` in the world frame (metres, radians).
+    frame : tuple of 5 floats
+        The map's origin ``(x, y)``, the cosine and sine of its yaw as
+        :meth:`robolab.maps.OccupancyGrid.world_to_map` computes them, and the yaw:
+        the poses are converted here, with that method's float operations in its
+        order (the same map coordinates bit for bit, without its numpy temporaries,
+        which cost about 5 % of a cast of 60 000 rays after other work).
     angles : float array, shape (B,)
         Beam angles relative to the heading.
     limit : float
@@ -235,11 +239,12 @@ def cast(fields, uv, heading, angles, limit, h, w, res, zmax):  # pragma: no cov
     -------
     numpy.ndarray, shape (N, B)
     """
-    n, b = uv.shape[0], angles.shape[0]
+    n, b = poses.shape[0], angles.shape[0]
     total = n * b
     out = np.full(total + 1, zmax)
     if total == 0:
         return out[:0].reshape(n, b)
+    uv, heading = _to_map(poses, frame, res)
     ca, sa = np.cos(angles), np.sin(angles)
     ch, sh = np.cos(heading), np.sin(heading)
     flat = fields.ravel()
@@ -312,6 +317,26 @@ def cast(fields, uv, heading, angles, limit, h, w, res, zmax):  # pragma: no cov
                 if done and hit:
                     out[state[0]] = min(t * res, zmax)
     return out[:total].reshape(n, b)
+
+
+@njit(nogil=True)
+def _to_map(poses, frame, res):  # pragma: no cover - compiled
+    """Map coordinates ``(N, 2)`` (cells) and headings ``(N,)`` of world ``poses``.
+
+    :meth:`robolab.maps.OccupancyGrid.world_to_map` and ``theta - yaw``, operation for
+    operation: ``u = (c dx + s dy) / res``, ``v = (-s dx + c dy) / res``.
+    """
+    ox, oy, c, s, yaw = frame
+    n = poses.shape[0]
+    uv = np.empty((n, 2))
+    heading = np.empty(n)
+    for i in range(n):
+        dx = poses[i, 0] - ox
+        dy = poses[i, 1] - oy
+        uv[i, 0] = (c * dx + s * dy) / res
+        uv[i, 1] = (-s * dx + c * dy) / res
+        heading[i] = poses[i, 2] - yaw
+    return uv, heading
 
 
 @njit(nogil=True)

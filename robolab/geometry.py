@@ -46,7 +46,14 @@ def wrap_angle(angle):
         x = (x + math.pi) % _TWO_PI - math.pi
         return x - _TWO_PI if x >= math.pi else x
     shifted = a + np.pi
-    if shifted.size and -_TWO_PI <= shifted.min() and shifted.max() < 2.0 * _TWO_PI:
+    lo, hi = (shifted.min(), shifted.max()) if shifted.size else (0.0, 0.0)
+    if 0.0 <= lo and hi < _TWO_PI:
+        # Angles in [-pi, pi) already (headings, mostly): the remainder below is the
+        # identity and shifted - pi stays in [-pi, pi) (exact, Sterbenz, from pi / 2 up):
+        # the same bits without the masked passes.
+        shifted -= np.pi
+        return shifted
+    if shifted.size and -_TWO_PI <= lo and hi < 2.0 * _TWO_PI:
         # The common case, angles within a turn of [-pi, pi): numpy's float remainder
         # (fmod, then + 2 pi for a negative one) without fmod, bit for bit: fmod is
         # x itself on (-2 pi, 2 pi) and x - 2 pi (exact, Sterbenz) on [2 pi, 4 pi).

@@ -222,6 +222,10 @@ class RayCaster:
         self.occupied = grid.occupied.copy()
         self._shape = self.occupied.shape
         self.backend = backend
+        # The map frame for the compiled kernel: origin, and cos and sin of its yaw
+        # computed as OccupancyGrid.world_to_map computes them.
+        ox, oy, yaw = grid.origin
+        self._frame = (float(ox), float(oy), float(np.cos(yaw)), float(np.sin(yaw)), float(yaw))
         #: The path of the last cast, "numba" or "numpy" (for an "auto" caster: the one chosen).
         self.last_path = None
         self._built = {}
@@ -268,14 +272,16 @@ class RayCaster:
             return np.empty((n, b))
         grid = self.grid
         res = grid.resolution
-        uv = grid.world_to_map(poses[:, :2])
-        heading = poses[:, 2] - grid.origin[2]
         limit = max_range / res  # may overflow to inf (max_range ~ 1e308): no limit then
         h, w = self._shape
         path = self.last_path = self._path(n * b)
         if path == "numba":
             fields = self._fields_for("numba")
-            return _jit().cast(fields, uv, heading, angles, limit, h, w, res, max_range)
+            # the kernel converts the poses to map coordinates itself (as world_to_map does)
+            poses = np.ascontiguousarray(poses)  # one compiled layout
+            return _jit().cast(fields, poses, self._frame, angles, limit, h, w, res, max_range)
+        uv = grid.world_to_map(poses[:, :2])
+        heading = poses[:, 2] - grid.origin[2]
         if self.backend == "auto":
             start = time.process_time()
             try:
@@ -440,7 +446,7 @@ def _jit():
                 # so that a broken numba install falls back here and not mid-cast
                 tiny = _raycast_jit.quadrant_fields(np.zeros((3, 3), dtype=bool))
                 _raycast_jit.octant_fields(np.zeros((3, 3), dtype=bool))
-                one = np.ones((1, 2)), np.zeros(1), np.zeros(1)
+                one = np.ones((1, 3)), (0.0, 0.0, 1.0, 0.0, 0.0), np.zeros(1)
                 _raycast_jit.cast(tiny, *one, 1.0, 1, 1, 1.0, 1.0)
                 _JIT = _raycast_jit
             except Exception as exc:  # noqa: BLE001 - any failure of numba means: fall back

@@ -213,11 +213,15 @@ def low_variance_resample(particles, weights, rng):
     if not np.isfinite(total):  # weights near 1e308 overflow the sum: scale them first
         w = w / w.max()
         total = w.sum()
-    c = np.cumsum(w / total)
-    pointers = r + np.arange(n) / n
+    # c = cumsum(w / total) and the pointers r + m / N, each built in one array in place
+    c = np.divide(w, total)
+    np.cumsum(c, out=c)
+    pointers = np.arange(n, dtype=float)
+    pointers /= n
+    pointers += r
     idx = np.searchsorted(c, pointers, side="right")
     # Rounding can leave c[-1] a hair below 1: never step past the last particle with weight.
-    last = n - 1 - int(np.argmax(w[::-1] > 0))  # the last particle with weight
+    last = n - 1 if w[-1] > 0 else n - 1 - int(np.argmax(w[::-1] > 0))
     np.minimum(idx, last, out=idx)
     return np.take(p, idx, axis=0)  # a copy: no aliasing
 

@@ -50,6 +50,9 @@ __all__ = [
 #: AMCL's guard: below this translation (metres) the motion is an in-place rotation and rot1 = 0.
 IN_PLACE_TRANSLATION = 0.01
 
+#: sample_motion_model_odometry moves this many particles at a time (its temporaries stay in cache).
+MOTION_BLOCK = 1 << 13
+
 #: Every ``params`` key used by this lab, with AMCL-like defaults (seed 000, listing 1.2).
 DEFAULT_PARAMS = {
     # motion model (Table 5.6): alpha1..alpha4, AMCL's odom_alpha1..4
@@ -270,17 +273,28 @@ def sample_motion_model_odometry(particles, odom_prev, odom_now, alphas, rng, co
             a[0] * n2**2 + a[1] * trans**2,
         ]
     )
-    draws = rng.standard_normal((p.shape[0], 3))
-    # the same products as draws * sqrt(var), stored as (3, N): contiguous rows
-    noise = np.multiply(draws.T, np.sqrt(var)[:, None], out=np.empty((3, p.shape[0])))
-    r1 = rot1 - noise[0]
-    tr = trans - noise[1]
-    r2 = rot2 - noise[2]
-    heading = p[:, 2] + r1
-    out = np.empty_like(p)
-    out[:, 0] = p[:, 0] + tr * np.cos(heading)
-    out[:, 1] = p[:, 1] + tr * np.sin(heading)
-    out[:, 2] = wrap_angle(heading + r2)
+    n, sd = p.shape[0], np.sqrt(var)
+    out = np.empty((n, 3))
+    rng.standard_normal(out=out)  # the draws of rng.standard_normal((N, 3)), in place
+    # In blocks of particles, in place: whole (N,) temporaries (800 KB each at 100 000
+    # particles) leave the cache and are page-faulted afresh on every call.
+    scratch = np.empty((4, min(n, MOTION_BLOCK)))
+    for i in range(0, n, MOTION_BLOCK):
+        k = min(MOTION_BLOCK, n - i)
+        part, done = p[i : i + k], out[i : i + k]
+        # the same products as draws * sqrt(var), stored as (3, k): contiguous rows
+        noise = np.multiply(done.T, sd[:, None], out=scratch[:3, :k])
+        r1 = np.subtract(rot1, noise[0], out=noise[0])
+        tr = np.subtract(trans, noise[1], out=noise[1])
+        r2 = np.subtract(rot2, noise[2], out=noise[2])
+        heading = np.add(part[:, 2], r1, out=r1)
+        step = np.cos(heading, out=scratch[3, :k])
+        step *= tr
+        np.add(part[:, 0], step, out=done[:, 0])
+        step = np.sin(heading, out=step)
+        step *= tr
+        np.add(part[:, 1], step, out=done[:, 1])
+        done[:, 2] = wrap_angle(np.add(heading, r2, out=r2))
     return out
 
 
@@ -463,8 +477,10 @@ def normalize_log_weights(logw):
         raise ValueError("logw must not contain NaN or +inf")
     if not np.isfinite(top):
         raise ValueError("logw is -inf everywhere: every particle has zero weight")
-    w = np.exp(lw - top)
-    return w / w.sum()
+    w = np.subtract(lw, top)  # one new array, changed in place
+    np.exp(w, out=w)
+    w /= w.sum()
+    return w
 
 
 # ----------------------------------------------------------------------------------------------
@@ -542,7 +558,8 @@ def mcl_step(particles, weights, odom_prev, odom_now, scan, field, params, rng):
     )
     logw = likelihood_field_model(scan, predicted, field, prm)
     with np.errstate(divide="ignore"):
-        w = normalize_log_weights(np.log(w) + logw)
+        logw = np.add(np.log(w, out=w), logw, out=w)  # w is this step's own copy
+    w = normalize_log_weights(logw)
     if (int(prm["update_count"]) + 1) % int(interval) == 0:
         predicted = low_variance_resample(predicted, w, rng)
         w = np.full(p.shape[0], 1.0 / p.shape[0])

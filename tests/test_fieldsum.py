@@ -92,6 +92,50 @@ def test_pose_table_sum_numpy_path_matches_the_loop(n):
     )
 
 
+@pytest.mark.parametrize("turned", [True, False])
+def test_laser_cells_are_compose_then_world_to_map_bit_for_bit(turned):
+    """The numpy path's in-place laser poses: compose's and world_to_map's bits, also for
+    poses at the float limits and NaN (their endpoints must land where the kernel's do).
+    Not turned: a laser and a map of yaw 0 and wrapped headings (with +-0), where the
+    heading's cosine and sine are reused."""
+    from robolab.geometry import compose, wrap_angle
+    from robolab.maps import OccupancyGrid
+
+    _, poses, laser, geometry, _, _ = pose_problem(300, seed=8)
+    if not turned:
+        laser[2] = 0.0
+        geometry = OccupancyGrid(np.zeros((1, 1)), 0.1, (-0.7, 0.4, 0.0))
+        poses[:, 2] = wrap_angle(poses[:, 2])
+        poses[4:6, 2] = [0.0, -0.0]
+    poses[0, :2] = 1.7e308
+    poses[1] = [1e308, -1e308, 1e300]
+    poses[2, 0] = poses[3, 2] = np.nan
+    with np.errstate(all="ignore"):
+        lp = compose(poses, laser)
+        uv = geometry.world_to_map(lp[:, :2]).astype(f32) + f32(1)
+        phi = lp[:, 2] - geometry.origin[2]
+        got = fieldsum._laser_cells(poses, laser, geometry)
+        if not turned:  # without the NaN heading and the -0 (-0 + 0 is +0): the shortcut
+            heading = poses[6:, 2]
+            assert np.array_equal(wrap_angle(heading + 0.0).view(np.int64), heading.view(np.int64))
+            fast = fieldsum._laser_cells(poses[6:], laser, geometry)
+            for want, have in zip(got, fast, strict=True):
+                np.testing.assert_array_equal(want[6:].view(np.int32), have.view(np.int32))
+    for want, have in zip((uv, np.cos(phi).astype(f32), np.sin(phi).astype(f32)), got, strict=True):
+        assert have.dtype == want.dtype
+        np.testing.assert_array_equal(have.view(np.int32), want.view(np.int32))  # the bits
+
+
+def test_pose_table_sum_numpy_path_in_chunks_of_poses(monkeypatch):
+    args = pose_problem(40, seed=4)
+    whole = fieldsum.pose_table_sum(*args, backend="numpy")
+    monkeypatch.setattr(fieldsum, "BLOCK", 2 * 9)  # 2 poses of 9 beams per block
+    monkeypatch.setattr(fieldsum, "POSE_BLOCKS", 3)  # chunks of 6 poses, the last one partial
+    chunked = fieldsum.pose_table_sum(*args, backend="numpy")
+    np.testing.assert_array_equal(chunked, whole)
+    np.testing.assert_array_equal(chunked, pose_brute_force(*args))
+
+
 @pytest.mark.skipif(raycast._jit() is None, reason="numba unavailable")
 @pytest.mark.parametrize("n", [1, 40, 3000])
 def test_fused_kernel_gives_the_numpy_paths_bits(n):

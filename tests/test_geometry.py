@@ -75,6 +75,24 @@ def test_wrap_angle_random_range_and_idempotent():
     np.testing.assert_array_equal(wrap_angle(w), w)
 
 
+def test_wrap_angle_is_numpys_remainder_bit_for_bit():
+    """Its shortcuts (angles in [-pi, pi), within a turn of it) against the plain formula."""
+    rng = np.random.default_rng(5)
+    edges = np.array([-PI, PI, 0.0, -0.0, PI / 2, -PI / 2, 2 * PI, -2 * PI, 3 * PI, -3 * PI])
+    edges = np.concatenate([edges, np.nextafter(edges, np.inf), np.nextafter(edges, -np.inf)])
+    for a in (
+        rng.uniform(-PI, PI, 100_000),
+        rng.uniform(-3 * PI, 3 * PI, 100_000),
+        rng.uniform(-1e4, 1e4, 1000),
+        edges,
+        edges[np.abs(edges) < PI],
+        np.array([]),
+    ):
+        want = (a + np.pi) % (2.0 * np.pi) - np.pi
+        want[want >= np.pi] -= 2.0 * np.pi
+        np.testing.assert_array_equal(wrap_angle(a), want)
+
+
 def test_wrap_angle_just_below_minus_pi_stays_in_range():
     # -pi - 1 ulp: (a + pi) is -4.4e-16 and (a + pi) % 2pi rounds up to exactly 2pi, so a
     # bare `(a + pi) % (2 pi) - pi` returns +pi, outside [-pi, pi).

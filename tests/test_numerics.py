@@ -132,6 +132,44 @@ def test_kld_sample_size_never_wraps_to_negative():
     assert mcl.kld_sample_size(1, 1e-300, 2.326) == 1  # one bin needs one sample
 
 
+@pytest.mark.parametrize("corrected", [False, True])
+def test_motion_model_in_blocks_gives_the_whole_arrays_bits(corrected, monkeypatch):
+    """Blocks of particles, in place: the same draws and the same operations as on whole
+    (N,) arrays (the formula of Table 5.6 written out here), bit for bit."""
+    rng = np.random.default_rng(7)
+    particles = np.column_stack([rng.uniform(-5, 5, (23, 2)), rng.uniform(-3.2, 3.2, 23)])
+    particles[::4, 2] += 30.0  # headings many turns away: wrap_angle's general path
+    prev, now, alphas = (0.3, -0.2, 3.0), (0.5, 0.1, -2.9), (0.1, 0.2, 0.05, 0.3)
+    rot1, trans, rot2 = mcl._odometry_deltas(prev, now)
+    n1, n2 = rot1, rot2
+    if corrected:
+        n1 = min(abs(mcl.angle_diff(rot1, 0.0)), abs(mcl.angle_diff(rot1, np.pi)))
+        n2 = min(abs(mcl.angle_diff(rot2, 0.0)), abs(mcl.angle_diff(rot2, np.pi)))
+    a = np.asarray(alphas)
+    sd = np.sqrt(
+        [
+            a[0] * n1**2 + a[1] * trans**2,
+            a[2] * trans**2 + a[3] * (n1**2 + n2**2),
+            a[0] * n2**2 + a[1] * trans**2,
+        ]
+    )
+    noise = np.random.default_rng(3).standard_normal((23, 3)) * sd
+    heading = particles[:, 2] + (rot1 - noise[:, 0])
+    tr = trans - noise[:, 1]
+    want = np.column_stack(
+        [
+            particles[:, 0] + tr * np.cos(heading),
+            particles[:, 1] + tr * np.sin(heading),
+            mcl.wrap_angle(heading + (rot2 - noise[:, 2])),
+        ]
+    )
+    monkeypatch.setattr(mcl, "MOTION_BLOCK", 5)  # several blocks, the last one partial
+    got = mcl.sample_motion_model_odometry(
+        particles, prev, now, alphas, np.random.default_rng(3), corrected=corrected
+    )
+    np.testing.assert_array_equal(got, want)
+
+
 @pytest.mark.parametrize("spread", MAGNITUDES)
 def test_normalize_log_weights_sums_to_one_at_any_spread(spread):
     w = mcl.normalize_log_weights(np.array([-spread, 0.0, spread, spread]))
