@@ -998,7 +998,7 @@ else:
 
 # %% [markdown]
 # And **global** localization on the real robot: a uniform start over the whole 2 cm map, the smoother
-# `GLOBAL_PARAMS` of section 3.5, 5000 particles.
+# `GLOBAL_PARAMS` of section 3.5, 2000 particles.
 
 # %%
 if neato is None:  # the recording read by the cell above (reading it again costs seconds)
@@ -1006,7 +1006,7 @@ if neato is None:  # the recording read by the cell above (reading it again cost
 else:
     neato_global_field = likelihood_field(neato.grid, 0.3, MAX_DIST)
     rng = np.random.default_rng(GLOBAL_SEED)
-    neato_global = mclplot.run_mcl(neato, mcl_step, init_uniform(neato.grid, 5000, rng), neato_global_field,
+    neato_global = mclplot.run_mcl(neato, mcl_step, init_uniform(neato.grid, 2000, rng), neato_global_field,
                                    GLOBAL_PARAMS, rng, every=2, desc="Neato global", snapshot_times=())
     locked = mclplot.convergence_time(neato_global, tolerance=0.5)
     err = neato_global["position_error"]

@@ -1,7 +1,7 @@
 """The compiled kernel of :func:`robolab.fieldsum.pose_table_sum` (numba, one core).
 
-Imported lazily by :mod:`robolab.fieldsum`, only when :mod:`robolab.raycast`'s
-compiled kernels load (so ``ROBOLAB_RAYCAST=numpy`` keeps numba out here too).
+Imported lazily by :mod:`robolab.fieldsum` on its own, without the ray casters of
+:mod:`robolab._raycast_jit` (``ROBOLAB_RAYCAST=numpy`` keeps numba out here too).
 
 One pass per pose, with no (N, B) and no (N,) temporaries: the laser's pose
 (:func:`robolab.geometry.compose`), its map coordinates
@@ -19,9 +19,25 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 
 TWO_PI = 2.0 * np.pi
+
+
+def _readonly(dtype, ndim):
+    return types.Array(dtype, ndim, "C", readonly=True)
+
+
+#: The one signature of :func:`pose_table_sum`: its inputs typed read-only, so that
+#: writeable and read-only arrays (the likelihood table is frozen) both convert to it. Left
+#: to numba, each combination of flags compiled its own version (two in lab 05: 0.3 s of
+#: CPU each with an empty cache) and read-only views cost a slow type look-up per call.
+SIGNATURE = types.void(
+    _readonly(types.float32, 1), types.int64, types.int64, _readonly(types.float64, 2),
+    _readonly(types.float64, 1), _readonly(types.float64, 1), _readonly(types.float64, 1),
+    types.float64, _readonly(types.float32, 1), _readonly(types.float32, 1),
+    types.Array(types.float64, 1, "C"),
+)
 
 
 @njit(cache=True, nogil=True)
@@ -41,7 +57,7 @@ def _wrap(a):  # pragma: no cover - compiled
     return x
 
 
-@njit(cache=True, nogil=True)
+@njit(SIGNATURE, cache=True, nogil=True)
 def pose_table_sum(  # pragma: no cover - compiled
     flat, rows, cols, poses, laser, origin, rot, res, qx, qy, out
 ):

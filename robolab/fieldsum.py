@@ -23,10 +23,19 @@ forces numpy): a compiled kernel (:func:`robolab._raycast_jit.table_sum`, one fu
 pass) and numpy in cache-sized blocks of particles. Both compute the endpoints in
 float32 with the same operations, so they look up the same cells, and both add the
 B values in beam order in float64: the two paths give the same bits.
+
+:func:`pose_table_sum` (MCL's likelihood field) needs only its own kernel
+(:mod:`robolab._fieldsum_jit`): its default path asks whether that kernel loads, not
+:func:`robolab.raycast.default_backend`, which would also load (or, with an empty
+numba cache, compile: about 3.4 s of CPU) the ray casters, which MCL never calls.
+The kernel has one explicit signature with read-only inputs
+(:data:`robolab._fieldsum_jit.SIGNATURE`), so numba compiles (and caches) one version
+whatever the flags of the caller's arrays.
 """
 
 from __future__ import annotations
 
+import os
 import warnings
 
 import numpy as np
@@ -157,7 +166,9 @@ def pose_table_sum(table, poses, laser, geometry, qx, qy, backend=None):
     qx, qy : numpy.ndarray, shape (B,), float32
         The beam endpoints in the laser frame, cells.
     backend : {"numba", "numpy"}, optional
-        Default: :func:`robolab.raycast.default_backend`.
+        Default: ``"numba"`` when the fused kernel loads (``ROBOLAB_RAYCAST`` as for
+        :func:`robolab.raycast.default_backend`: ``numpy`` forces numpy, ``numba``
+        requires numba), else ``"numpy"``. The ray casters are not loaded.
 
     Returns
     -------
@@ -166,7 +177,7 @@ def pose_table_sum(table, poses, laser, geometry, qx, qy, backend=None):
         C library's (x86-64 without AVX-512; tested): elsewhere an endpoint within a
         rounding of a cell boundary may fall in the neighbouring cell.
     """
-    backend = backend or raycast.default_backend()
+    backend = backend or _pose_default_backend()
     if backend not in FIELDSUM_BACKENDS:
         raise ValueError(f"backend must be one of {FIELDSUM_BACKENDS}, got {backend!r}")
     poses = np.ascontiguousarray(poses, dtype=float)
@@ -180,7 +191,7 @@ def pose_table_sum(table, poses, laser, geometry, qx, qy, backend=None):
             out[i : i + chunk] = table_sum(table, uv, c, s, qx, qy, backend=backend)
         return out
     table = np.ascontiguousarray(table, dtype=np.float32)
-    origin = np.asarray(geometry.origin, dtype=float)
+    origin = np.ascontiguousarray(geometry.origin, dtype=float)
     rot = np.array([np.cos(origin[2]), np.sin(origin[2])])  # as world_to_map computes them
     out = np.empty(poses.shape[0])
     kernel(
@@ -233,20 +244,43 @@ def _laser_cells(poses, laser, geometry):
     return uv, cos_phi, sin_phi
 
 
+def _pose_default_backend() -> str:
+    """:func:`pose_table_sum`'s default: ``"numba"`` when its fused kernel loads.
+
+    ``ROBOLAB_RAYCAST`` as :func:`robolab.raycast.default_backend` reads it, without
+    loading the ray casters.
+    """
+    choice = os.environ.get("ROBOLAB_RAYCAST", "").strip().lower()
+    if choice and choice not in raycast.BACKENDS:
+        raise ValueError(f"ROBOLAB_RAYCAST must be one of {raycast.BACKENDS}, got {choice!r}")
+    if _fused() is not None:
+        return "numba"
+    if choice == "numba":
+        raise ImportError("ROBOLAB_RAYCAST=numba but numba cannot be imported (pip install numba)")
+    return "numpy"
+
+
 _FUSED = []
 
 
 def _fused():
-    """The compiled :func:`robolab._fieldsum_jit.pose_table_sum`, or None without numba."""
+    """The compiled :func:`robolab._fieldsum_jit.pose_table_sum`, or None without numba.
+
+    Only this kernel: the ray casters (:func:`robolab.raycast._jit`) stay unloaded.
+    ``ROBOLAB_RAYCAST=numpy`` keeps numba out, as it does for the casters.
+    """
     if not _FUSED:
         kernel = None
-        if raycast._jit() is not None:  # numba works and ROBOLAB_RAYCAST is not numpy
+        if raycast._JIT is not None and (  # None: numba was tried and is unusable
+            os.environ.get("ROBOLAB_RAYCAST", "").strip().lower() != "numpy"
+        ):
             try:
                 from robolab import _fieldsum_jit
 
                 kernel = _fieldsum_jit.pose_table_sum
-                # compile (or load from numba's cache) now, on a tiny table, so that a
-                # broken numba falls back here and not in the middle of a filter
+                # compiled (or loaded from numba's cache) by the import, for its one
+                # signature; run it on a tiny table, so that a broken numba falls back
+                # here and not in the middle of a filter
                 one, out = np.ones(1, np.float32), np.empty(1)
                 kernel(one, 1, 1, np.zeros((1, 3)), np.zeros(3), np.zeros(3), np.array([1.0, 0.0]),
                        1.0, one, one, out)

@@ -602,3 +602,38 @@ def test_a_file_that_is_not_a_bag_raises_one_line_bag_error(tmp_path, content):
     with pytest.raises(BagError) as info:
         BagReader(bad_yaml)
     assert "\n" not in str(info.value)
+
+
+def test_a_bag_without_message_definitions_reads_with_the_latest_typestore(tmp_path):
+    """The default typestore (rosbags' latest ROS2 one, built only when a bag needs it)
+    decodes a ROS2 bag whose recorder stored no message definitions."""
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from robolab.bag.ros1 import LatestTypestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    path = tmp_path / "nodefs"
+    with Writer(path, version=9) as w:
+        pose = w.add_connection("/pose", "geometry_msgs/msg/PoseStamped", typestore=store)
+        for k in range(3):
+            msg = T["geometry_msgs/msg/PoseStamped"](
+                header=T["std_msgs/msg/Header"](
+                    stamp=T["builtin_interfaces/msg/Time"](sec=k, nanosec=0), frame_id="map"
+                ),
+                pose=T["geometry_msgs/msg/Pose"](
+                    position=T["geometry_msgs/msg/Point"](x=float(k), y=0.5, z=0.0),
+                    orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+                ),
+            )
+            w.write(pose, k, store.serialize_cdr(msg, pose.msgtype))
+    db = sqlite3.connect(next(path.glob("*.db3")))
+    db.execute("DELETE FROM message_definitions")
+    db.commit()
+    db.close()
+    with BagReader(path) as bag:
+        track = bag.poses("/pose")
+    np.testing.assert_allclose(track.x, [0, 1, 2])
+    np.testing.assert_allclose(track.y, [0.5, 0.5, 0.5])
+    assert LatestTypestore().fielddefs == get_typestore(Stores.LATEST).fielddefs

@@ -191,3 +191,35 @@ def test_nan_endpoints_read_cell_zero_on_both_paths():
         reference = fieldsum.table_sum(table, uv, c, s, qx, qy, backend="numpy")
     np.testing.assert_array_equal(compiled, reference)
     assert np.all(np.isfinite(compiled))
+
+
+@pytest.mark.skipif(raycast._jit() is None, reason="numba unavailable")
+def test_pose_table_sum_loads_only_its_kernel_in_one_signature():
+    """MCL's default path loads the fused kernel alone (not the ray casters, whose
+    compilation with an empty numba cache costs seconds) and compiles it once, whatever
+    the flags of the caller's arrays (writeable or read-only table, poses, beams)."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = (
+        "import sys, numpy as np\n"
+        "from robolab import fieldsum\n"
+        "from robolab.maps import OccupancyGrid\n"
+        "rng = np.random.default_rng(0)\n"
+        "table = rng.normal(size=(21, 27)).astype(np.float32)\n"
+        "geometry = OccupancyGrid(np.zeros((19, 25)), 0.1, (-0.7, 0.4, 0.3))\n"
+        "poses = rng.uniform(-1.5, 3.5, (5, 3))\n"
+        "laser = np.array([0.12, -0.03, 0.2])\n"
+        "qx, qy = rng.uniform(-12, 12, (2, 9)).astype(np.float32)\n"
+        "first = fieldsum.pose_table_sum(table, poses, laser, geometry, qx, qy)\n"
+        "for a in (table, poses, laser, qx, qy):\n"
+        "    a.flags.writeable = False\n"
+        "again = fieldsum.pose_table_sum(table, poses, laser, geometry, qx, qy)\n"
+        "assert np.array_equal(first, again)\n"
+        "print(len(fieldsum._fused().signatures), 'robolab._raycast_jit' in sys.modules)\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    run = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+                         text=True, check=True)
+    assert run.stdout.split() == ["1", "False"]

@@ -78,14 +78,12 @@ class BagReader:
             raise FileNotFoundError(f"bag not found: {self.path}")
         if self.path.is_dir():
             _check_ros2_folder(self.path)
-        from rosbags.typesys import Stores, get_typestore
-
-        from robolab.bag.ros1 import any_reader_class
+        from robolab.bag.ros1 import LatestTypestore, any_reader_class
 
         self._reader = None
         with self._wrap("cannot open bag"):
             # AnyReader, or a ROS1-only reader where rosbags' ROS2 reader cannot be imported
-            reader = any_reader_class()([self.path], default_typestore=get_typestore(Stores.LATEST))
+            reader = any_reader_class()([self.path], default_typestore=LatestTypestore())
             reader.open()
             self._reader = reader
         try:

@@ -12,7 +12,28 @@ from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["Ros1OnlyReader", "any_reader_class"]
+__all__ = ["LatestTypestore", "Ros1OnlyReader", "any_reader_class"]
+
+
+class LatestTypestore:
+    """rosbags' ``get_typestore(Stores.LATEST)``, built on first use.
+
+    The readers consult their default typestore only for a bag that carries no message
+    definitions (the bundled and the Olin bags carry theirs); building it imports every
+    ROS2 distribution's type module (dashing to kilted, each importing its predecessor:
+    about 0.05 s of CPU per process), which such a bag never needs. Any attribute is
+    the real typestore's.
+    """
+
+    def __getattr__(self, name):
+        if name.startswith("__"):  # copy, pickle and the like probe dunders: not the store's
+            raise AttributeError(name)
+        store = self.__dict__.get("_store")
+        if store is None:
+            from rosbags.typesys import Stores, get_typestore
+
+            store = self.__dict__["_store"] = get_typestore(Stores.LATEST)
+        return getattr(store, name)
 
 
 def any_reader_class():
