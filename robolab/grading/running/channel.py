@@ -299,21 +299,23 @@ class Worker:
             if not self._wait(poller):
                 self._check_alive()
                 continue
-            chunk = os.read(self.response_r, min(want - got, 1 << 24))
-            if not chunk:
-                self._check_alive(force=True)
-                continue
-            chunks.append(chunk)
-            got += len(chunk)
-            if size is None and got == HEADER.size:
-                size = HEADER.unpack(b"".join(chunks))[0]
-                if size > MAX_MESSAGE_BYTES:
-                    raise StudentCodeError(
-                        f"the result is too large ({size} bytes; "
-                        f"at most {MAX_MESSAGE_BYTES} are accepted)",
-                        kind="result",
-                    )
-                chunks, got, want = [], 0, size
+            while size is None or got < want:  # what is there already, without the checks
+                chunk = os.read(self.response_r, min(want - got, 1 << 24))
+                if not chunk:
+                    self._check_alive(force=True)
+                chunks.append(chunk)
+                got += len(chunk)
+                if size is None and got == HEADER.size:
+                    size = HEADER.unpack(b"".join(chunks))[0]
+                    if size > MAX_MESSAGE_BYTES:
+                        raise StudentCodeError(
+                            f"the result is too large ({size} bytes; "
+                            f"at most {MAX_MESSAGE_BYTES} are accepted)",
+                            kind="result",
+                        )
+                    chunks, got, want = [], 0, size
+                elif got < want and not poller.poll(0):
+                    break
         self.request_awake = self.awake.elapsed()
         if any(ev & select.POLLIN for _, ev in poller.poll(0)):
             # The worker speaks only when asked: more bytes already there break the protocol.

@@ -52,6 +52,8 @@ LENGTH = struct.Struct("<Q")
 READONLY = 1 << 63
 #: Arrays smaller than this always travel in the message (a slot would not pay).
 MIN_BYTES = 1 << 18
+#: Arrays smaller than this travel inside the pickle, larger ones after it (out of band).
+OUT_OF_BAND_BYTES = 1 << 16
 #: Largest array kept in a slot, and the number of slots (per worker, on each side).
 MAX_BYTES = 1 << 24
 SLOTS = 4
@@ -118,8 +120,8 @@ class SentArrays:
 
 
 class _Pickler(pickle.Pickler):
-    def __init__(self, file: io.BytesIO, buffers: list, sent: SentArrays | None) -> None:
-        super().__init__(file, protocol=5, buffer_callback=buffers.append)
+    def __init__(self, file: io.BytesIO, buffer_callback: Any, sent: SentArrays) -> None:
+        super().__init__(file, protocol=5, buffer_callback=buffer_callback)
         self._sent = sent
         #: id(array) -> the persistent id given to it in this message (a "put" or a "get").
         self.refs: dict[int, tuple] = {}
@@ -129,7 +131,7 @@ class _Pickler(pickle.Pickler):
         if obj is self._putting:  # the array inside its own "put": pickled whole, once
             self._putting = None
             return None
-        if self._sent is None or not _plain(obj):
+        if not _plain(obj):
             return None
         if id(obj) in self.refs:  # named again in the same message: the same object there
             return ("same", self.refs[id(obj)][2])
@@ -144,16 +146,32 @@ class _Pickler(pickle.Pickler):
 def encode(message: Any, sent: SentArrays | None = None) -> list[memoryview]:
     """The frame of ``message``: header, pickle and each out-of-band buffer, unjoined.
 
-    A buffer's length has its top bit set when the array is read-only (it arrives so).
+    Arrays under :data:`OUT_OF_BAND_BYTES` stay in the pickle (a read of their own would
+    cost the worker more than the copy). A message holding an array of :data:`MIN_BYTES`
+    or more is pickled a second time with the slots (pickling out of band copies no
+    array): the common small request pays no Python call per object it holds. A buffer's
+    length has its top bit set when the array is read-only (it arrives so).
     """
-    file, buffers = io.BytesIO(), []
-    pickler = _Pickler(file, buffers, sent)
-    try:
-        pickler.dump(message)
-    except BaseException:
-        if sent is not None:
+    file, buffers, large = io.BytesIO(), [], []
+
+    def out_of_band(buffer: pickle.PickleBuffer) -> bool:
+        size = buffer.raw().nbytes
+        if size < OUT_OF_BAND_BYTES:
+            return True
+        if size >= MIN_BYTES:
+            large.append(size)
+        buffers.append(buffer)
+        return False
+
+    pickle.Pickler(file, protocol=5, buffer_callback=out_of_band).dump(message)
+    if large and sent is not None:
+        file, buffers = io.BytesIO(), []
+        pickler = _Pickler(file, out_of_band, sent)
+        try:
+            pickler.dump(message)
+        except BaseException:
             sent.forget(list(pickler.refs.values()))
-        raise
+            raise
     raws = [b.raw() for b in buffers]
     head = REQUEST_HEADER.pack(file.tell(), len(raws)) + b"".join(
         LENGTH.pack(r.nbytes | (READONLY if r.readonly else 0)) for r in raws
