@@ -66,6 +66,7 @@ PRELOAD = (
     "robolab.grading.loading.delegation",
     "robolab.grading.wire.observe",
     "robolab.grading.wire.depcall",
+    "robolab.grading.wire.arrays",
     "robolab.grading.wire.codec",
     "robolab.geometry",
     "robolab.validation",
