@@ -89,6 +89,8 @@ class SentArrays:
     def __init__(self) -> None:
         self._slots: list[np.ndarray | None] = [None] * SLOTS
         self._used = [0] * SLOTS
+        #: The object each slot last stood for: compared with first (a hint, never trusted).
+        self._last: list[weakref.ref | None] = [None] * SLOTS
         self._clock = itertools.count(1)
         #: id -> weak reference of large arrays sent once (the candidates for a slot).
         self._seen: dict[int, weakref.ref] = {}
@@ -96,9 +98,12 @@ class SentArrays:
     def reference(self, obj: np.ndarray, key: int) -> tuple | None:
         """The persistent id standing for ``obj`` (the ``key``-th of its message), or None."""
         readonly = not obj.flags.writeable
-        for slot, kept in enumerate(self._slots):
+        hinted = [s for s in range(SLOTS) if self._last[s] is not None and self._last[s]() is obj]
+        for slot in hinted + [s for s in range(SLOTS) if s not in hinted]:
+            kept = self._slots[slot]
             if kept is not None and _same_bytes(obj, kept):
                 self._used[slot] = next(self._clock)
+                self._last[slot] = weakref.ref(obj)
                 return ("get", slot, key, readonly)
         seen = self._seen.get(id(obj))
         if seen is None or seen() is not obj:
@@ -109,13 +114,14 @@ class SentArrays:
         slot = min(range(SLOTS), key=self._used.__getitem__)  # the least recently used
         self._slots[slot] = obj.copy(order="K")
         self._used[slot] = next(self._clock)
+        self._last[slot] = weakref.ref(obj)
         return ("put", slot, key, readonly, obj)
 
     def forget(self, refs: list[tuple]) -> None:
         """Slots stored while encoding a message that was never sent: no longer known."""
         for ref in refs:
             if ref[0] == "put":
-                self._slots[ref[1]] = None
+                self._slots[ref[1]] = self._last[ref[1]] = None
                 self._used[ref[1]] = 0
 
 
