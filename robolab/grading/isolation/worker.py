@@ -89,15 +89,17 @@ def write_all(fd: int, views: list[memoryview]) -> None:
                 views[0], written = views[0][written:], 0
 
 
-def read_frame(fd: int) -> tuple[bytearray, list] | None:
-    """Read one request frame of the grader (:mod:`~.wire.arrays`): the pickle and its
-    out-of-band buffers, each in memory of its own; None at end of file."""
-    from robolab.grading.wire.arrays import LENGTH, READONLY, REQUEST_HEADER
+def read_frame(fd: int) -> tuple[bytearray, list, bool] | None:
+    """Read one request frame of the grader (:mod:`~.wire.arrays`): the pickle, its
+    out-of-band buffers, each in memory of its own, and whether it names slots; None at
+    end of file."""
+    from robolab.grading.wire.arrays import LENGTH, READONLY, REQUEST_HEADER, SLOTTED
 
     header = _read_exactly(fd, REQUEST_HEADER.size)
     if header is None:
         return None
     size, count = REQUEST_HEADER.unpack(header)
+    slotted, count = bool(count & SLOTTED), count & ~SLOTTED
     lengths = _read_exactly(fd, LENGTH.size * count) if count else b""
     body = _read_exactly(fd, size)
     if lengths is None or body is None:
@@ -108,7 +110,7 @@ def read_frame(fd: int) -> tuple[bytearray, list] | None:
         if data is None:
             raise EOFError("the request pipe closed in the middle of a message")
         buffers.append(memoryview(data).toreadonly() if length & READONLY else data)
-    return body, buffers
+    return body, buffers, slotted
 
 
 def _read_exactly(fd: int, size: int) -> bytearray | None:
@@ -273,7 +275,8 @@ def _asker(request_fd: int, response_fd: int, call_id: int, received):
         frame = read_frame(request_fd)
         if frame is None:
             raise EOFError("the grader closed the request pipe during a call")
-        return decode(*frame, received)  # from the grader, the trusted side
+        body, buffers, slotted = frame
+        return decode(body, buffers, received, slotted)  # from the grader, the trusted side
 
     return ask
 
@@ -304,7 +307,8 @@ def serve(request_fd: int, response_fd: int) -> int:
         if frame is None:
             return 0
         reap_children()
-        request = decode(*frame, received)  # from the grader, the trusted side
+        body, buffers, slotted = frame
+        request = decode(body, buffers, received, slotted)  # from the grader, the trusted side
         if request[0] == "define":
             problems = define(notebook, *request[1:])
             for stream in (sys.stdout, sys.stderr):

@@ -50,6 +50,8 @@ REQUEST_HEADER = struct.Struct("<QI")
 LENGTH = struct.Struct("<Q")
 #: The top bit of a buffer's length: the array is read-only.
 READONLY = 1 << 63
+#: The top bit of the number of buffers: the pickle names slots (persistent ids).
+SLOTTED = 1 << 31
 #: Arrays smaller than this always travel in the message (a slot would not pay).
 MIN_BYTES = 1 << 18
 #: Arrays smaller than this travel inside the pickle, larger ones after it (out of band).
@@ -170,6 +172,7 @@ def encode(message: Any, sent: SentArrays | None = None) -> list[memoryview]:
         return False
 
     pickle.Pickler(file, protocol=5, buffer_callback=out_of_band).dump(message)
+    slotted = 0
     if large and sent is not None:
         file, buffers = io.BytesIO(), []
         pickler = _Pickler(file, out_of_band, sent)
@@ -178,8 +181,9 @@ def encode(message: Any, sent: SentArrays | None = None) -> list[memoryview]:
         except BaseException:
             sent.forget(list(pickler.refs.values()))
             raise
+        slotted = SLOTTED if pickler.refs else 0
     raws = [b.raw() for b in buffers]
-    head = REQUEST_HEADER.pack(file.tell(), len(raws)) + b"".join(
+    head = REQUEST_HEADER.pack(file.tell(), len(raws) | slotted) + b"".join(
         LENGTH.pack(r.nbytes | (READONLY if r.readonly else 0)) for r in raws
     )
     return [memoryview(head), file.getbuffer(), *raws]
@@ -227,7 +231,9 @@ class _Unpickler(pickle.Unpickler):
         return self._received.load(pid, self._message)
 
 
-def decode(body: bytes, buffers: list, received: ReceivedArrays) -> Any:
+def decode(body: bytes, buffers: list, received: ReceivedArrays, slotted: bool = True) -> Any:
     """The message of a frame the worker read (the grader's side is trusted)."""
     received.new_message()
+    if not slotted:  # no slot named: the C unpickler alone (the common small request)
+        return pickle.loads(body, buffers=buffers)  # noqa: S301 - the grader's
     return _Unpickler(io.BytesIO(body), buffers, received).load()  # noqa: S301 - the grader's

@@ -33,7 +33,8 @@ def _through_pipe(message, sent, received):
         os.close(w)
     assert _read_exactly(r, 1) is None  # nothing left behind: one frame, read whole
     os.close(r)
-    return size, arrays.decode(*frame, received)
+    body, buffers, slotted = frame
+    return size, arrays.decode(body, buffers, received, slotted)
 
 
 def _big(seed=0, shape=(300, 200)):
