@@ -9,8 +9,11 @@ The worker first isolates itself (:func:`robolab.grading.isolation.sandbox.apply
 it is still single-threaded and before any student code exists in it), then
 answers requests until its request pipe closes.
 
-Wire protocol: each message is an 8-byte little-endian length followed by a
-pickle (protocol 5). Grader -> worker (trusted, plain pickle)::
+Wire protocol: each message from the worker is an 8-byte little-endian length followed
+by a pickle (protocol 5). Each message from the grader is a frame of
+:func:`robolab.grading.wire.arrays.encode`: a pickle whose arrays follow it out of band
+(and a large array sent before may be named by its slot). Grader -> worker (trusted,
+plain pickle)::
 
     ("define", [(cell_index, source), ...], wall_seconds, cpu_seconds)
     ("call", call_id, name, args, kwargs, cpu_seconds, answered_names)
@@ -46,6 +49,8 @@ import sys
 HEADER = struct.Struct("<Q")
 #: Longest exception message or traceback sent back, in characters.
 MAX_TEXT = 20_000
+#: Freed memory malloc may keep for reuse (:func:`~.libc.pad_heap`): 32 MiB resident at most.
+HEAP_PAD_BYTES = 1 << 25
 #: Top-level packages a submission must never import.
 FORBIDDEN_PACKAGES = frozenset({"solutions", "tests"})
 
@@ -68,32 +73,58 @@ class RefuseAnswers:
 
 
 def write_frame(fd: int, payload: bytes) -> None:
-    """Write one length-prefixed message, completely."""
-    view = memoryview(HEADER.pack(len(payload)) + payload)
-    while view:
-        written = os.write(fd, view)
-        view = view[written:]
+    """Write one length-prefixed message, completely (the payload is not copied)."""
+    write_all(fd, [memoryview(HEADER.pack(len(payload))), memoryview(payload)])
 
 
-def read_frame(fd: int) -> bytes | None:
-    """Read one length-prefixed message; None at end of file."""
-    header = _read_exactly(fd, HEADER.size)
+def write_all(fd: int, views: list[memoryview]) -> None:
+    """Write every byte of ``views``, in order, to the blocking descriptor ``fd``."""
+    views = [v.cast("B") if v.ndim != 1 or v.format != "B" else v for v in views if v.nbytes]
+    while views:
+        written = os.writev(fd, views[:64])
+        while written:
+            if written >= views[0].nbytes:
+                written -= views.pop(0).nbytes
+            else:
+                views[0], written = views[0][written:], 0
+
+
+def read_frame(fd: int) -> tuple[bytearray, list, bool] | None:
+    """Read one request frame of the grader (:mod:`~.wire.arrays`): the pickle, its
+    out-of-band buffers, each in memory of its own, and whether it names slots; None at
+    end of file."""
+    from robolab.grading.wire.arrays import LENGTH, READONLY, REQUEST_HEADER, SLOTTED
+
+    header = _read_exactly(fd, REQUEST_HEADER.size)
     if header is None:
         return None
-    body = _read_exactly(fd, HEADER.unpack(header)[0])
-    if body is None:
+    size, count = REQUEST_HEADER.unpack(header)
+    slotted, count = bool(count & SLOTTED), count & ~SLOTTED
+    lengths = _read_exactly(fd, LENGTH.size * count) if count else b""
+    body = _read_exactly(fd, size)
+    if lengths is None or body is None:
         raise EOFError("the request pipe closed in the middle of a message")
-    return body
+    buffers: list = []
+    for (length,) in LENGTH.iter_unpack(lengths):
+        data = _read_exactly(fd, length & ~READONLY)
+        if data is None:
+            raise EOFError("the request pipe closed in the middle of a message")
+        buffers.append(memoryview(data).toreadonly() if length & READONLY else data)
+    return body, buffers, slotted
 
 
-def _read_exactly(fd: int, size: int) -> bytes | None:
-    chunks = bytearray()
-    while len(chunks) < size:
-        chunk = os.read(fd, min(size - len(chunks), 1 << 20))
-        if not chunk:
-            return None if not chunks else bytes(chunks)
-        chunks += chunk
-    return bytes(chunks)
+def _read_exactly(fd: int, size: int) -> bytearray | None:
+    """``size`` bytes read straight into one buffer; None at end of file before the first."""
+    data = bytearray(size)
+    view, got = memoryview(data), 0
+    while got < size:
+        n = os.readv(fd, [view[got:]])
+        if not n:
+            if not got:
+                return None
+            raise EOFError("the request pipe closed in the middle of a message")
+        got += n
+    return data
 
 
 def _send(fd: int, message: tuple) -> None:
@@ -162,14 +193,17 @@ def _dumps(value: object) -> bytes:
     return dumps(value)
 
 
-def _watch(args: tuple, kwargs: dict):
-    """A snapshot of the call's argument arrays (see :mod:`~.wire.observe`), or None."""
+def _watch(args: tuple, kwargs: dict, kept=None):
+    """A snapshot of the call's argument arrays (see :mod:`~.wire.observe`), or None.
+
+    ``kept(array)``: the worker's untouched copy of an argument, if it has one.
+    """
     from robolab.grading.wire.observe import (
         Watch,  # imports numpy: only after the sandbox is applied
     )
 
     try:
-        return Watch(args, kwargs)
+        return Watch(args, kwargs, kept)
     except Exception:  # noqa: BLE001 - an argument numpy cannot copy: nothing is observed
         return None
 
@@ -195,6 +229,7 @@ def _call(
     args: tuple,
     kwargs: dict,
     cpu_seconds: float,
+    kept=None,
 ) -> None:
     watch = None
     function = namespace.get(name)
@@ -203,7 +238,7 @@ def _call(
         return
     try:
         _limit_cpu(cpu_seconds)
-        watch = _watch(args, kwargs)
+        watch = _watch(args, kwargs, kept)
         value = function(*args, **kwargs)
         observation = watch.report(value) if watch is not None else None
         payload = _dumps(("ok", call_id, value, observation))
@@ -227,8 +262,9 @@ def _call(
     write_frame(response_fd, payload)
 
 
-def _asker(request_fd: int, response_fd: int, call_id: int):
+def _asker(request_fd: int, response_fd: int, call_id: int, received):
     """Send a depcall of the running call to the grader and return its reply."""
+    from robolab.grading.wire.arrays import decode
 
     def ask(message: tuple) -> tuple:
         try:
@@ -239,7 +275,8 @@ def _asker(request_fd: int, response_fd: int, call_id: int):
         frame = read_frame(request_fd)
         if frame is None:
             raise EOFError("the grader closed the request pipe during a call")
-        return pickle.loads(frame)  # noqa: S301 - from the grader, the trusted side
+        body, buffers, slotted = frame
+        return decode(body, buffers, received, slotted)  # from the grader, the trusted side
 
     return ask
 
@@ -258,7 +295,9 @@ def reap_children() -> None:
 def serve(request_fd: int, response_fd: int) -> int:
     """Answer define and call requests until the grader closes the request pipe."""
     from robolab.grading.loading import kernel
+    from robolab.grading.wire.arrays import ReceivedArrays, decode
 
+    received = ReceivedArrays()  # the large arrays this worker's grader stored here
     # The notebook's module, as a kernel holds it: `__main__`, in the scratch folder
     # (the working folder the sandbox left writable), which is first on sys.path.
     notebook = kernel.Notebook(os.getcwd()).enter()
@@ -268,7 +307,8 @@ def serve(request_fd: int, response_fd: int) -> int:
         if frame is None:
             return 0
         reap_children()
-        request = pickle.loads(frame)  # noqa: S301 - from the grader, the trusted side
+        body, buffers, slotted = frame
+        request = decode(body, buffers, received, slotted)  # from the grader, the trusted side
         if request[0] == "define":
             problems = define(notebook, *request[1:])
             for stream in (sys.stdout, sys.stderr):
@@ -281,11 +321,13 @@ def serve(request_fd: int, response_fd: int) -> int:
             from robolab.grading.wire.depcall import answered
 
             call_id, name, args, kwargs, cpu_seconds, *below = request[1:]
-            ask = _asker(request_fd, response_fd, call_id)
+            ask = _asker(request_fd, response_fd, call_id, received)
             # The library's copy of the exercise is disabled while it runs; the exercises
             # below it are answered by the grader's reference (a mistake costs once).
             with forbidden(name, namespace), answered(below[0] if below else (), namespace, ask):
-                _call(response_fd, namespace, call_id, name, args, kwargs, cpu_seconds)
+                _call(
+                    response_fd, namespace, call_id, name, args, kwargs, cpu_seconds, received.kept
+                )
         else:
             raise ValueError(f"unknown request {request[0]!r}")
 
@@ -308,6 +350,10 @@ def main(argv: list[str] | None = None) -> int:
         _send(response_fd, ("failed", f"{type(exc).__name__}: {exc}"))
         return 3
     sys.stdout.reconfigure(line_buffering=True)
+    from robolab.grading.isolation.libc import pad_heap
+
+    # Large temporaries reuse freed pages instead of faulting fresh ones in on every call.
+    pad_heap(HEAP_PAD_BYTES)
     import numpy  # noqa: F401 - warm the import every submission makes
 
     _send(response_fd, ("ready", report.to_dict()))

@@ -66,6 +66,7 @@ PRELOAD = (
     "robolab.grading.loading.delegation",
     "robolab.grading.wire.observe",
     "robolab.grading.wire.depcall",
+    "robolab.grading.wire.arrays",
     "robolab.grading.wire.codec",
     "robolab.geometry",
     "robolab.validation",
@@ -126,7 +127,8 @@ GRADER_PRELOAD_IDLE = (
     "robolab.maps",
     "robolab.raycast",
     # numba and the ray-casting kernels the hidden tests of the beam-model and MCL labs
-    # call (import and load from numba's cache: 1.5 s of every such pytest run otherwise);
+    # call, and MCL's fused likelihood-field sum (import and load from numba's cache:
+    # 1.5 s of every such pytest run otherwise);
     # only once a run of such a lab was asked for (COMPILED_LABS)
     "robolab.grading.isolation.zygote:_warm_compiled",
     "robolab.bag",
@@ -185,15 +187,20 @@ def _import(name: str) -> None:
 
 
 def _warm_compiled() -> None:
-    """Load numba's compiled ray-casting kernels (the grader zygote, while idle)."""
+    """Load numba's compiled kernels (the grader zygote, while idle): ray casting, and the
+    fused likelihood-field sum of lab 05's reference (``robolab.fieldsum``), which answers
+    the depcalls of an MCL submission whose models fail their tests (1.5-2 s of every such
+    pytest run otherwise)."""
     try:
         import numpy as np
 
+        from robolab import fieldsum
         from robolab.maps import OccupancyGrid
         from robolab.raycast import cast_rays
 
         grid = OccupancyGrid(np.zeros((4, 4)), 0.1, (0.0, 0.0, 0.0))
         cast_rays(grid, np.full((1, 3), 0.2), np.zeros(1), 1.0)
+        fieldsum._fused()
     except Exception:  # noqa: BLE001 - no numba, or it failed: each run loads its own
         pass
 

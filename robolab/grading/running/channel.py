@@ -7,8 +7,8 @@ sweeps what the call started; :class:`Output` holds what the student's code prin
 
 from __future__ import annotations
 
+import fcntl
 import os
-import pickle
 import select
 import shutil
 import signal
@@ -38,7 +38,7 @@ from robolab.grading.running.limits import (
     STARTUP_SECONDS,
     Limits,
 )
-from robolab.grading.wire import codec
+from robolab.grading.wire import arrays, codec
 
 if TYPE_CHECKING:
     pass
@@ -48,6 +48,20 @@ __all__ = ["Output", "Worker", "decode_clock", "kill_uid"]
 
 #: The grader thread's CPU clock, which decoding a result is charged by.
 decode_clock = time.thread_time
+
+#: Capacity asked for the request and response pipes (Linux; the default is 64 KiB, and
+#: ``/proc/sys/fs/pipe-max-size``, 1 MiB by default, is what an unprivileged grader gets):
+#: a request or an answer of a few MB then crosses in a few writes instead of one 64 KiB
+#: write and one wake-up of the other side each.
+PIPE_BYTES = 1 << 20
+
+
+def _widen(fd: int) -> None:
+    """Ask for a :data:`PIPE_BYTES` pipe (a smaller one only costs more wake-ups)."""
+    try:
+        fcntl.fcntl(fd, getattr(fcntl, "F_SETPIPE_SZ", 1031), PIPE_BYTES)
+    except OSError:
+        pass
 
 
 class Output:
@@ -136,6 +150,13 @@ class Worker:
         request_r, self.request_w = os.pipe()
         self.response_r, response_w = os.pipe()
         output_r, output_w = os.pipe()
+        for fd in (self.request_w, self.response_r):
+            _widen(fd)
+        # Written only when poll says there is room, and only as much as fits: a worker
+        # that stops reading cannot block the grader past its deadlines.
+        os.set_blocking(self.request_w, False)
+        #: The large arrays this worker holds (sent once; wire.arrays).
+        self.sent = arrays.SentArrays()
         env = {
             "PATH": "/usr/bin:/bin",
             "HOME": str(workdir),
@@ -195,21 +216,27 @@ class Worker:
     def reply(self, message: tuple) -> None:
         """Send a message within the running request (the request, or a depcall's answer)."""
         before = processes.run_delay()  # until it is written, the worker waits for this thread
-        payload = pickle.dumps(message, protocol=5)
-        frame = memoryview(HEADER.pack(len(payload)) + payload)
+        # One pickle; the arrays' bytes are written from the arrays themselves (wire.arrays).
+        views = [v.cast("B") for v in arrays.encode(message, self.sent) if v.nbytes]
         poller = select.poll()
         poller.register(self.request_w, select.POLLOUT)
-        while frame:
+        while views:
             self._check_time(None)
             if not poller.poll(POLL_SECONDS * 1000):
                 self._check_alive()
                 continue
             try:
-                written = os.write(self.request_w, frame[: 1 << 16])
+                written = os.writev(self.request_w, views[:64])
+            except BlockingIOError:
+                continue
             except BrokenPipeError:
                 self._check_alive(force=True)
                 raise
-            frame = frame[written:]
+            while written:
+                if written >= views[0].nbytes:
+                    written -= views.pop(0).nbytes
+                else:
+                    views[0], written = views[0][written:], 0
         after = processes.run_delay()
         if before is not None and after is not None:
             self.awake.excuse(after - before)
@@ -250,12 +277,17 @@ class Worker:
             self.reply(reply)
 
     def _read_message(self, cpu_limit: float | None) -> bytes:
-        """One length-prefixed message's bytes, within the request's wall and CPU limits."""
-        buffer = bytearray()
+        """One length-prefixed message's bytes, within the request's wall and CPU limits.
+
+        The header is read alone and then only the message's own bytes: an answer that
+        fits the pipe arrives as the one ``bytes`` object of a single read, not copied again.
+        """
+        chunks: list[bytes] = []
+        got, want = 0, HEADER.size
         size: int | None = None
         poller = select.poll()
         poller.register(self.response_r, select.POLLIN)
-        while size is None or len(buffer) < size:
+        while size is None or got < want:
             self._check_time(cpu_limit)
             alarm = self._alarm_after
             if alarm is not None and self.request_awake > alarm:
@@ -267,24 +299,30 @@ class Worker:
             if not self._wait(poller):
                 self._check_alive()
                 continue
-            chunk = os.read(self.response_r, 1 << 20)
-            if not chunk:
-                self._check_alive(force=True)
-            buffer += chunk
-            if size is None and len(buffer) >= HEADER.size:
-                size = HEADER.size + HEADER.unpack_from(buffer)[0]
-                if size > MAX_MESSAGE_BYTES + HEADER.size:
-                    raise StudentCodeError(
-                        f"the result is too large ({size - HEADER.size} bytes; "
-                        f"at most {MAX_MESSAGE_BYTES} are accepted)",
-                        kind="result",
-                    )
+            while size is None or got < want:  # what is there already, without the checks
+                chunk = os.read(self.response_r, min(want - got, 1 << 24))
+                if not chunk:
+                    self._check_alive(force=True)
+                chunks.append(chunk)
+                got += len(chunk)
+                if size is None and got == HEADER.size:
+                    size = HEADER.unpack(b"".join(chunks))[0]
+                    if size > MAX_MESSAGE_BYTES:
+                        raise StudentCodeError(
+                            f"the result is too large ({size} bytes; "
+                            f"at most {MAX_MESSAGE_BYTES} are accepted)",
+                            kind="result",
+                        )
+                    chunks, got, want = [], 0, size
+                elif got < want and not poller.poll(0):
+                    break
         self.request_awake = self.awake.elapsed()
-        if len(buffer) > size:
+        if any(ev & select.POLLIN for _, ev in poller.poll(0)):
+            # The worker speaks only when asked: more bytes already there break the protocol.
             raise StudentCodeError(
                 "the worker sent more than one answer to one request", kind="protocol"
             )
-        return bytes(buffer[HEADER.size :])
+        return chunks[0] if len(chunks) == 1 else b"".join(chunks)
 
     def _end_call(self, cpu_limit: float | None, decoding: float = 0.0) -> None:
         """Kill what the call started, charging its CPU and ``decoding``; check the scratch."""

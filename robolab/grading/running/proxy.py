@@ -316,7 +316,7 @@ class SubmissionProxy:
                 student_traceback=self._broken.student_traceback,
             )
         try:
-            pickle.dumps((args, kwargs), protocol=5)
+            _picklable((args, kwargs))
         except Exception as exc:
             raise TypeError(f"arguments to {name}() cannot be sent to the worker: {exc}") from exc
         spent = self._budget_spent()
@@ -419,7 +419,7 @@ class SubmissionProxy:
             if reply[0] in ("answer", "raise"):
                 self._disclosed.add(message[2])
             try:
-                pickle.dumps(reply, protocol=5)
+                _picklable(reply)
             except Exception as exc:  # noqa: BLE001 - a reference value that cannot cross
                 return ("own", f"the reference's answer cannot be sent: {exc}")
             return reply
@@ -480,6 +480,16 @@ class SubmissionProxy:
         if self._worker is not None:
             self._worker.close()
             self._worker = None
+
+
+def _picklable(value: Any) -> None:
+    """Raise what pickling ``value`` raises; arrays are not copied (out of band, dropped):
+    the message itself is pickled once, when it is sent (``Worker.reply``)."""
+    pickle.dumps(value, protocol=5, buffer_callback=_drop)
+
+
+def _drop(buffer: pickle.PickleBuffer) -> bool:
+    return False
 
 
 def _short(value: Any, limit: int = 200) -> str:
@@ -561,4 +571,3 @@ def open_submission(
     except StudentCodeError:
         pass  # recorded in proxy.problems; every call raises it again
     return proxy
-

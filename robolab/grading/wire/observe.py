@@ -35,7 +35,7 @@ writeable array (documented in docs/grading.md section 2).
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
@@ -85,8 +85,9 @@ def arrays_in(
                 yield from arrays_in(item, (*path, ("k", key)), depth + 1, budget)
     elif dataclasses.is_dataclass(value) and not isinstance(value, type):
         for f in dataclasses.fields(value):
-            yield from arrays_in(getattr(value, f.name, None), (*path, ("a", f.name)), depth + 1,
-                                 budget)
+            yield from arrays_in(
+                getattr(value, f.name, None), (*path, ("a", f.name)), depth + 1, budget
+            )
 
 
 def _bounds(a: np.ndarray) -> tuple[int, int]:
@@ -108,8 +109,14 @@ def _address(a: np.ndarray) -> int:
 class Watch:
     """Snapshot of a call's argument arrays, taken in the worker before the call."""
 
-    def __init__(self, args: tuple, kwargs: dict) -> None:
-        self.inputs = [(path, a, a.copy()) for path, a in _first(arrays_in((args, kwargs)))]
+    def __init__(
+        self, args: tuple, kwargs: dict, snapshot: Callable[[np.ndarray], Any] | None = None
+    ) -> None:
+        # ``snapshot(a)``: an untouched copy of ``a`` kept anyway (the worker's slot of an
+        # array the grader sent before, wire.arrays), or None to copy it here.
+        self.inputs = [
+            (path, a, _snapshot(a, snapshot)) for path, a in _first(arrays_in((args, kwargs)))
+        ]
 
     def report(self, result: Any) -> dict:
         """The observation of the call that returned ``result`` (plain data)."""
@@ -128,6 +135,11 @@ class Watch:
                 aliases.append((path, *alias))
             seen.append(("result", path, r))
         return {"modified": modified, "readonly": readonly, "aliases": aliases}
+
+
+def _snapshot(a: np.ndarray, kept: Callable[[np.ndarray], Any] | None) -> np.ndarray:
+    before = kept(a) if kept is not None else None
+    return a.copy() if before is None else before
 
 
 def _first(found: Iterator[tuple[Path, np.ndarray]]) -> list[tuple[Path, np.ndarray]]:
