@@ -1,7 +1,7 @@
 """The mutation suite: every plausible mistake loses points on its own exercise.
 
-Per lab, one batch is graded through the real grader (``robolab.grading.running.runner``,
-two at a time): the solved notebook (must earn 100), the mutants packed into
+One batch is graded through the real grader (``robolab.grading.running.runner``, two at
+a time) holding, per lab: the solved notebook (must earn 100), the mutants packed into
 notebooks (see ``build.py``: each must lose points on its own exercise), and the
 "free points" notebooks (``build.FREE_POINTS``: every exercise raising ValueError,
 returning its first argument, returning zeros of the right shape, or zeroing its
