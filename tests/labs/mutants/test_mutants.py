@@ -1,7 +1,7 @@
 """The mutation suite: every plausible mistake loses points on its own exercise.
 
-One batch is graded through the real grader (``robolab.grading.running.runner``, two at
-a time) holding, per lab: the solved notebook (must earn 100), the mutants packed into
+Per lab, one batch is graded through the real grader (``robolab.grading.running.runner``,
+two at a time): the solved notebook (must earn 100), the mutants packed into
 notebooks (see ``build.py``: each must lose points on its own exercise), and the
 "free points" notebooks (``build.FREE_POINTS``: every exercise raising ValueError,
 returning its first argument, returning zeros of the right shape, or zeroing its
@@ -123,80 +123,34 @@ OBSERVES_ARGUMENTS = importlib.util.find_spec("robolab.grading.wire.observe") is
 FREE_POINTS_PENDING: set[str] = set()
 
 
-#: Labs whose batches cost the most, first: the two grading threads then finish close
-#: together instead of one grading a costly lab's last notebooks alone (measured at load
-#: 4: ekf_slam, mcl and fastslam about 32 s each -j 2, the rest 19 s and less).
-COSTLIEST_FIRST = ("ekf_slam", "mcl", "fastslam", "odometry_mapping", "graph_slam", "beam_model")
+@functools.lru_cache(maxsize=None)
+def graded(lab_name: str) -> dict:
+    """Grade the lab's batch once: ``{"correct", <each free-points kind>, "packs": [...]}``."""
+    from robolab.grading.running.runner import grade_all
 
-
-def _notebooks(lab_name: str) -> tuple[dict, list[list[build.Mutant]]]:
-    """The lab's batch: ``{key: notebook}`` (the solved one, free points, packs) and packs."""
     lab = find_lab(lab_name)
     base = build.solved(lab)
     groups = build.packs(lab, build.mutants_of(lab_name))
-    notebooks = {"correct": base} | {
-        kind: build.free_points_variant(lab, kind) for kind in build.FREE_POINTS
-    }
-    notebooks |= {f"pack{i:02d}": build.pack_notebook(lab, g, base) for i, g in enumerate(groups)}
-    return notebooks, groups
-
-
-@functools.lru_cache(maxsize=None)
-def graded_labs(labs: tuple[str, ...]) -> dict[str, dict]:
-    """Grade the batches of ``labs`` once, together, two at a time: ``{lab: graded}``.
-
-    Each lab's ``graded`` is ``{"correct", <each free-points kind>, "packs": [...]}``.
-    One batch for every lab (each notebook graded as its own lab's) instead of one per
-    lab: no lab waits for the previous one's last notebook, alone on one thread.
-    """
-    from robolab.grading.running.runner import grade_all
-
-    rank = {name: i for i, name in enumerate(COSTLIEST_FIRST)}
-    order = sorted(labs, key=lambda name: rank.get(name, len(rank)))
-    batches = {name: _notebooks(name) for name in order}
-    with tempfile.TemporaryDirectory(prefix="robolab-mutants-") as tmp:
+    with tempfile.TemporaryDirectory(prefix=f"robolab-mutants-{lab_name}-") as tmp:
         folder = Path(tmp)
-        paths, keys = [], []
-        for name, (notebooks, _) in batches.items():
-            (folder / name).mkdir()
-            for key, nb in notebooks.items():
-                path = folder / name / f"{key}.ipynb"
-                nbformat.write(nb, str(path))
-                paths.append(path)
-                keys.append((name, key))
-        results = grade_all(paths, labs=[name for name, _ in keys], jobs=2, progress=False)
-    by_key = dict(zip(keys, results, strict=True))
-    return {
-        name: {
-            "correct": by_key[name, "correct"],
-            **{kind: by_key[name, kind] for kind in build.FREE_POINTS},
-            "packs": [(g, by_key[name, f"pack{i:02d}"]) for i, g in enumerate(groups)],
+        notebooks = {
+            "correct": base,
+        } | {kind: build.free_points_variant(lab, kind) for kind in build.FREE_POINTS}
+        notebooks |= {
+            f"pack{i:02d}": build.pack_notebook(lab, g, base) for i, g in enumerate(groups)
         }
-        for name, (_, groups) in batches.items()
+        paths = []
+        for key, nb in notebooks.items():
+            path = folder / f"{key}.ipynb"
+            nbformat.write(nb, str(path))
+            paths.append(path)
+        results = grade_all(paths, lab=lab_name, jobs=2, progress=False)
+    by_key = dict(zip(notebooks, results, strict=True))
+    return {
+        "correct": by_key["correct"],
+        **{kind: by_key[kind] for kind in build.FREE_POINTS},
+        "packs": [(g, by_key[f"pack{i:02d}"]) for i, g in enumerate(groups)],
     }
-
-
-def _lab_of(item: pytest.Item) -> str | None:
-    params = getattr(item, "callspec", None)
-    params = params.params if params is not None else {}
-    if "mutant" in params:
-        return params["mutant"].lab
-    return params.get("lab")
-
-
-@pytest.fixture(scope="module")
-def graded(request) -> dict[str, dict]:
-    """``{lab: graded}`` for every lab a selected test of this module reads it for.
-
-    The labs come from the session's selected tests (``-k`` or a node id grades only
-    theirs), all graded in one batch the first time a test asks.
-    """
-    labs = {
-        _lab_of(item)
-        for item in request.session.items
-        if item.module is request.module and "graded" in getattr(item, "fixturenames", ())
-    }
-    return graded_labs(tuple(sorted(lab for lab in labs if lab is not None)))
 
 
 def _lost(result) -> list[str]:
@@ -249,9 +203,9 @@ def test_mutants_differ_from_the_solution(lab):
 
 
 @pytest.mark.parametrize("lab", MUTANT_LABS)
-def test_the_solved_notebook_earns_full_marks(graded, lab):
+def test_the_solved_notebook_earns_full_marks(lab):
     """The notebook the mutants start from is correct: 100 of 100 through the grader."""
-    result = graded[lab]["correct"]
+    result = graded(lab)["correct"]
     assert not result.errors, f"lab {lab}: grading the solved notebook failed: {result.errors}"
     assert result.total == result.max_points == pytest.approx(100), (
         f"lab {lab}: the solved notebook earned {result.total:g}/{result.max_points:g}; "
@@ -260,9 +214,9 @@ def test_the_solved_notebook_earns_full_marks(graded, lab):
 
 
 @pytest.mark.parametrize("mutant", MUTANTS, ids=[m.id for m in MUTANTS])
-def test_each_mutant_loses_points_on_its_own_exercise(graded, mutant):
+def test_each_mutant_loses_points_on_its_own_exercise(mutant):
     """A notebook with this one mistake earns less than full marks on the exercise it breaks."""
-    result = next(r for group, r in graded[mutant.lab]["packs"] if mutant in group)
+    result = next(r for group, r in graded(mutant.lab)["packs"] if mutant in group)
     assert not result.errors, f"mutant {mutant.id}: grading failed: {result.errors}"
     earned, possible = result.exercise_scores()[mutant.exercise]
     if earned >= possible and mutant.kind == "aliasing" and not OBSERVES_ARGUMENTS:
@@ -278,11 +232,11 @@ FREE_LABS = [lab.name for lab in LABS]
 
 @pytest.mark.parametrize("kind", sorted(build.FREE_POINTS))
 @pytest.mark.parametrize("lab", FREE_LABS)
-def test_free_points_notebooks_earn_nothing(graded, lab, kind):
+def test_free_points_notebooks_earn_nothing(lab, kind):
     """Exercises that only raise, echo their input, return zeros or zero their inputs earn 0."""
     if lab in FREE_POINTS_PENDING:
         pytest.xfail(f"lab {lab}: its hidden tests are not gated yet")
-    result = graded[lab][kind]
+    result = graded(lab)[kind]
     assert not result.errors, f"lab {lab}, {kind}: grading failed: {result.errors}"
     kept = [f"{t.exercise}: {t.description} ({t.points:g})" for t in result.tests if t.passed]
     assert result.total == 0, (
@@ -292,7 +246,7 @@ def test_free_points_notebooks_earn_nothing(graded, lab, kind):
     )
 
 
-def collateral(graded_lab: dict) -> list[tuple[build.Mutant, float, float]]:
+def collateral(lab: str) -> list[tuple[build.Mutant, float, float]]:
     """Per mutant: points lost on its own exercise, and points lost on every other exercise.
 
     Mutants of independent exercises share a notebook (``build.packs``), so each mutant
@@ -300,7 +254,7 @@ def collateral(graded_lab: dict) -> list[tuple[build.Mutant, float, float]]:
     it: an upper bound on what the mutant alone would cost elsewhere.
     """
     rows = []
-    for group, result in graded_lab["packs"]:
+    for group, result in graded(lab)["packs"]:
         scores = result.exercise_scores()
         mutated = {m.exercise for m in group}
         elsewhere = sum(p - e for x, (e, p) in scores.items() if x not in mutated)
@@ -317,14 +271,14 @@ COLLATERAL_MEAN = 0.5
 
 
 @pytest.mark.parametrize("lab", MUTANT_LABS)
-def test_a_mistake_costs_once(graded, lab):
+def test_a_mistake_costs_once(lab):
     """A mistake loses points on its own exercise and (nearly) nowhere else.
 
     The exercises a graded exercise builds on answer as the reference while it is
     graded (robolab/grading/running/answers.py), so a correct exercise keeps its points next to
     a wrong one it calls. Bounds of issue 24, per lab (so they hold over all labs).
     """
-    rows = collateral(graded[lab])
+    rows = collateral(lab)
     hit = [(m.id, lost) for m, _, lost in rows if lost > 0]
     mean = sum(lost for _, _, lost in rows) / len(rows)
     table = "\n".join(
@@ -388,13 +342,13 @@ STALE_SIGNS = ("NameError", "ImportError", "required positional argument", "unex
 
 
 @pytest.mark.parametrize("mutant", MUTANTS, ids=[m.id for m in MUTANTS])
-def test_each_mutant_fails_for_its_own_mistake(graded, mutant):
+def test_each_mutant_fails_for_its_own_mistake(mutant):
     """No failure of the mutated exercise comes from a helper that no longer exists or fits.
 
     A mutant that dies on a renamed helper loses its points whatever its mistake, and the
     feedback a student would read for that mistake is never seen.
     """
-    result = next(r for group, r in graded[mutant.lab]["packs"] if mutant in group)
+    result = next(r for group, r in graded(mutant.lab)["packs"] if mutant in group)
     stale = [
         f"{t.description}: {t.message[:200]!r}"
         for t in result.tests
@@ -408,10 +362,8 @@ def main(labs: list[str]) -> None:
     """Print every mutant's collateral: ``python -m tests.labs.mutants.test_mutants [LAB ...]``."""
     print("| mutant | class | lost on its exercise | lost elsewhere |")
     print("|---|---|---|---|")
-    labs = labs or MUTANT_LABS
-    every = graded_labs(tuple(labs))
-    for lab in labs:
-        for m, own, lost in collateral(every[lab]):
+    for lab in labs or MUTANT_LABS:
+        for m, own, lost in collateral(lab):
             print(f"| {m.id} | {m.kind} | {own:g} ({m.exercise}) | {lost:g} |")
 
 
