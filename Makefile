@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 
 export MPLBACKEND := Agg
 
-.PHONY: help venv test test-suite test-grading test-grading-running test-grading-other test-rest test-notebooks grade lab bench data lint notebooks clean
+.PHONY: help venv test test-suite test-grading test-grading-running test-grading-loading test-grading-exports test-grading-other test-mutants test-rest test-notebooks grade lab bench data lint notebooks clean
 
 help:
 	@echo "make grade   set up, then grade the example submissions (gradebook in grades/)"
@@ -33,16 +33,26 @@ venv: $(STAMP)
 # (byte-compiling is half the install's CPU time: 37 s of 75 s, measured at load 15).
 STUDENT_VENV := build/student-venv
 
-# The test suite (in three parts: the grader's running and loading tests, which hold the
-# load test and the fidelity suite; the rest of the grader's tests; everything else) and
-# the solved notebooks run as four jobs on the two cores (make -j 2), longest first, so
-# that both cores stay busy to the end; each one's output is printed when it is done
-# (--output-sync), and any failing fails `make test`. Together the three pytest runs
-# collect every test once. `make test-suite` runs the whole suite in one pytest.
-GRADING_RUNNING := tests/grading/running tests/grading/loading
+# The test suite (in six parts) and the solved notebooks run as seven jobs at once on the
+# two cores (make -j 7), each in a session of its own (tools/own_session.py: Linux shares
+# the CPU per session, and the grader's workers each have one; in make's session the
+# tests run in-process shared one session's share against them all). Run together, the
+# jobs that wait (the Gradescope set-up's pip, the time limits, the notebooks' kernels one
+# at a time) leave their core to the others instead of idling it, and none waits for a
+# slot. Each one's output is printed when it is done (--output-sync), and any failing
+# fails `make test`. Together the six pytest runs collect every test once. `make
+# test-suite` runs the whole suite in one pytest.
+SESSION         := $(CURDIR)/$(BIN)/python $(CURDIR)/tools/own_session.py
+GRADING_RUNNING := tests/grading/running
+GRADING_LOADING := tests/grading/loading
+GRADING_EXPORTS := tests/grading/exports tests/grading/test_instructor_doc.py \
+                   tests/grading/test_commands.py tests/grading/test_cli.py
+MUTANTS         := tests/labs/mutants
+TEST_JOBS       := test-grading-running test-grading-loading test-grading-exports \
+                   test-grading-other test-mutants test-rest test-notebooks
 
 test: $(STAMP)
-	@$(MAKE) --no-print-directory -j 2 --output-sync=target test-grading-running test-rest test-grading-other test-notebooks
+	@$(MAKE) --no-print-directory -j 7 --output-sync=target $(TEST_JOBS)
 
 test-suite: $(STAMP)
 	$(BIN)/python -m pytest
@@ -51,21 +61,31 @@ test-grading: $(STAMP)
 	$(BIN)/python -m pytest tests/grading
 
 test-grading-running: $(STAMP)
-	$(BIN)/python -m pytest $(GRADING_RUNNING)
+	$(SESSION) $(BIN)/python -m pytest $(GRADING_RUNNING)
+
+test-grading-loading: $(STAMP)
+	$(SESSION) $(BIN)/python -m pytest $(GRADING_LOADING)
+
+test-grading-exports: $(STAMP)
+	$(SESSION) $(BIN)/python -m pytest $(GRADING_EXPORTS)
 
 test-grading-other: $(STAMP)
-	$(BIN)/python -m pytest tests/grading $(addprefix --ignore=,$(GRADING_RUNNING))
+	$(SESSION) $(BIN)/python -m pytest tests/grading \
+	    $(addprefix --ignore=,$(GRADING_RUNNING) $(GRADING_LOADING) $(GRADING_EXPORTS))
+
+test-mutants: $(STAMP)
+	$(SESSION) $(BIN)/python -m pytest $(MUTANTS)
 
 test-rest: $(STAMP)
-	$(BIN)/python -m pytest --ignore=tests/grading
+	$(SESSION) $(BIN)/python -m pytest --ignore=tests/grading --ignore=$(MUTANTS)
 
 test-notebooks: $(STAMP)
-	$(BIN)/robolab solve notebooks/ -o build/solved
+	$(SESSION) $(BIN)/robolab solve notebooks/ -o build/solved
 	$(BIN)/python tools/add_figure_audit.py build/solved
-	$(BIN)/robolab release build/student
+	$(SESSION) $(BIN)/robolab release build/student
 	rm -rf $(STUDENT_VENV) && $(PYTHON) -m venv $(STUDENT_VENV)
-	$(STUDENT_VENV)/bin/python -m pip install --quiet --disable-pip-version-check --no-compile build/student/dist/robolab-*.whl pytest nbval
-	cd build/solved && ../student-venv/bin/python -m pytest --nbval-lax --nbval-current-env --nbval-cell-timeout=120 -p no:cacheprovider . -o testpaths=. -o addopts=""
+	$(SESSION) $(STUDENT_VENV)/bin/python -m pip install --quiet --disable-pip-version-check --no-compile build/student/dist/robolab-*.whl pytest nbval
+	cd build/solved && $(SESSION) ../student-venv/bin/python -m pytest --nbval-lax --nbval-current-env --nbval-cell-timeout=120 -p no:cacheprovider . -o testpaths=. -o addopts=""
 
 grade: $(STAMP)
 	$(BIN)/robolab grade examples/submissions/*/*.ipynb --out grades/ -j 2
