@@ -250,14 +250,7 @@ def _pose_default_backend() -> str:
     ``ROBOLAB_RAYCAST`` as :func:`robolab.raycast.default_backend` reads it, without
     loading the ray casters.
     """
-    choice = os.environ.get("ROBOLAB_RAYCAST", "").strip().lower()
-    if choice and choice not in raycast.BACKENDS:
-        raise ValueError(f"ROBOLAB_RAYCAST must be one of {raycast.BACKENDS}, got {choice!r}")
-    if _fused() is not None:
-        return "numba"
-    if choice == "numba":
-        raise ImportError("ROBOLAB_RAYCAST=numba but numba cannot be imported (pip install numba)")
-    return "numpy"
+    return raycast.compiled_or_numpy(_fused)
 
 
 _FUSED = []

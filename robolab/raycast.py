@@ -480,10 +480,21 @@ def default_backend() -> str:
     ImportError when numba is not usable). ``RayCaster(grid)`` and :func:`cast_rays`
     otherwise use ``"auto"``, which imports numba only for work that needs it.
     """
+    return compiled_or_numpy(_jit)
+
+
+def compiled_or_numpy(load) -> str:
+    """``"numba"`` when ``load()`` returns compiled kernels, else ``"numpy"``.
+
+    ``ROBOLAB_RAYCAST`` is checked first (a value outside :data:`BACKENDS` raises
+    ValueError; ``numba`` raises ImportError when ``load()`` gives None). ``load`` is
+    :func:`_jit` for the casters or another module's own kernel loader (it keeps numba
+    out under ``ROBOLAB_RAYCAST=numpy``), so a caller loads only what it runs.
+    """
     choice = os.environ.get("ROBOLAB_RAYCAST", "").strip().lower()
     if choice and choice not in BACKENDS:
         raise ValueError(f"ROBOLAB_RAYCAST must be one of {BACKENDS}, got {choice!r}")
-    if _jit() is not None:
+    if load() is not None:
         return "numba"
     if choice == "numba":
         raise ImportError("ROBOLAB_RAYCAST=numba but numba cannot be imported (pip install numba)")

@@ -422,6 +422,28 @@ def test_ros2_bag_round_trip(tmp_path, plugin):
         np.testing.assert_allclose(angle_diff(odom.theta, exp["odom"][:, 2]), 0, atol=1e-12)
 
 
+def _ros2_pose_stamped(types, sec, x, y):
+    """A ROS2 ``geometry_msgs/msg/PoseStamped`` at ``(x, y)``, heading 0, stamped ``sec``."""
+    T = types
+    return T["geometry_msgs/msg/PoseStamped"](
+        header=T["std_msgs/msg/Header"](
+            stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=0), frame_id="map"
+        ),
+        pose=T["geometry_msgs/msg/Pose"](
+            position=T["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+            orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
+        ),
+    )
+
+
+def _drop_definitions(path, where=""):
+    """Delete message definitions (those matching SQL ``where``) from a ROS2 bag's database."""
+    db = sqlite3.connect(next(path.glob("*.db3")))
+    db.execute(f"DELETE FROM message_definitions {where}")
+    db.commit()
+    db.close()
+
+
 def test_unsupported_type_warns_and_is_skipped(tmp_path):
     from rosbags.rosbag2 import Writer
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -437,21 +459,10 @@ def test_unsupported_type_warns_and_is_skipped(tmp_path):
             w.write(
                 thing, k, store.serialize_cdr(T["robolab_test/msg/Thing"](value=k), thing.msgtype)
             )
-            msg = T["geometry_msgs/msg/PoseStamped"](
-                header=T["std_msgs/msg/Header"](
-                    stamp=T["builtin_interfaces/msg/Time"](sec=k, nanosec=0), frame_id="map"
-                ),
-                pose=T["geometry_msgs/msg/Pose"](
-                    position=T["geometry_msgs/msg/Point"](x=float(k), y=0.0, z=0.0),
-                    orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
-                ),
-            )
+            msg = _ros2_pose_stamped(T, k, float(k), 0.0)
             w.write(pose, k, store.serialize_cdr(msg, pose.msgtype))
     # A bag whose recorder did not store the custom type's definition.
-    db = sqlite3.connect(next(path.glob("*.db3")))
-    db.execute("DELETE FROM message_definitions WHERE topic_type = 'robolab_test/msg/Thing'")
-    db.commit()
-    db.close()
+    _drop_definitions(path, "WHERE topic_type = 'robolab_test/msg/Thing'")
     with BagReader(path) as bag:
         with pytest.warns(UserWarning, match="robolab_test/msg/Thing"):
             seen = list(bag.messages(["/thing", "/pose"]))
@@ -618,20 +629,9 @@ def test_a_bag_without_message_definitions_reads_with_the_latest_typestore(tmp_p
     with Writer(path, version=9) as w:
         pose = w.add_connection("/pose", "geometry_msgs/msg/PoseStamped", typestore=store)
         for k in range(3):
-            msg = T["geometry_msgs/msg/PoseStamped"](
-                header=T["std_msgs/msg/Header"](
-                    stamp=T["builtin_interfaces/msg/Time"](sec=k, nanosec=0), frame_id="map"
-                ),
-                pose=T["geometry_msgs/msg/Pose"](
-                    position=T["geometry_msgs/msg/Point"](x=float(k), y=0.5, z=0.0),
-                    orientation=T["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=1.0),
-                ),
-            )
+            msg = _ros2_pose_stamped(T, k, float(k), 0.5)
             w.write(pose, k, store.serialize_cdr(msg, pose.msgtype))
-    db = sqlite3.connect(next(path.glob("*.db3")))
-    db.execute("DELETE FROM message_definitions")
-    db.commit()
-    db.close()
+    _drop_definitions(path)  # the recorder stored none
     with BagReader(path) as bag:
         track = bag.poses("/pose")
     np.testing.assert_allclose(track.x, [0, 1, 2])
