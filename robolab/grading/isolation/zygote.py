@@ -117,6 +117,11 @@ GRADER_PRELOAD = (
     "robolab.validation",
     "robolab.grading.running.proxy",
     "robolab.grading.running.pytest_plugin",
+    # what every run's lab fixture imports (issue 29)
+    "robolab.grading.running.answers",
+    "robolab.grading.isolation.warm",
+    "robolab.grading.wire.depcall",
+    "encodings.ascii",
 )
 #: ... and while it is idle: what the hidden tests and reference solutions import.
 GRADER_PRELOAD_IDLE = (
