@@ -117,6 +117,11 @@ GRADER_PRELOAD = (
     "robolab.validation",
     "robolab.grading.running.proxy",
     "robolab.grading.running.pytest_plugin",
+    # what every run's lab fixture imports (issue 29)
+    "robolab.grading.running.answers",
+    "robolab.grading.isolation.warm",
+    "robolab.grading.wire.depcall",
+    "encodings.ascii",
 )
 #: ... and while it is idle: what the hidden tests and reference solutions import.
 GRADER_PRELOAD_IDLE = (
@@ -242,6 +247,45 @@ def _keep_rewritten_tests(folder: str) -> None:  # pragma: no cover - in a forke
     rewrite.get_cache_dir, rewrite._rewrite_test = cache_dir, rewrite_and_keep
 
 
+def _entry_point_names() -> frozenset[str] | None:
+    """The names of the installed ``pytest11`` entry points (None when they cannot be read)."""
+    try:
+        from importlib.metadata import entry_points
+
+        return frozenset(ep.name for ep in entry_points(group="pytest11"))
+    except Exception:  # noqa: BLE001 - runs look them up themselves, as before
+        return None
+
+
+def _skip_needless_pytest_work(names: frozenset[str] | None) -> None:  # pragma: no cover
+    """Spare a forked pytest run two scans whose answer is known (issue 29).
+
+    - ``-p MODULE`` makes pytest read every installed distribution's entry points for one
+      named ``MODULE`` (2 % of a Bayes run's CPU); the zygote read their names once
+      (``names``), so a name that is none of them is answered at once, as the scan would.
+    - pytest 9 looks behind every attribute of every plugin, conftest and test module for a
+      fixture hidden under decorators, only to *warn* about it (6 % of a run, most of it in
+      pytest's own plugins). A grading run shows no warnings (``-q``, its log is read only
+      when it fails), and the instructor's own pytest run of the hidden tests still warns.
+    Both are patched on this child's copy of pytest only; a pytest without these internals
+    runs as it is.
+    """
+    from _pytest.config import PytestPluginManager
+    from _pytest.fixtures import FixtureManager
+
+    if names is not None and hasattr(PytestPluginManager, "load_setuptools_entrypoints"):
+        load = PytestPluginManager.load_setuptools_entrypoints
+
+        def load_known(self, group: str, name: str | None = None) -> int:
+            if group == "pytest11" and name is not None and name not in names:
+                return 0
+            return load(self, group, name)
+
+        PytestPluginManager.load_setuptools_entrypoints = load_known
+    if hasattr(FixtureManager, "_check_for_wrapped_fixture"):
+        FixtureManager._check_for_wrapped_fixture = lambda self, name, obj: None
+
+
 def _threads() -> int:
     try:
         return len(os.listdir("/proc/self/task"))
@@ -262,6 +306,8 @@ class _Server:
         self.wants_compiled = False  # a pytest run of a COMPILED_LABS lab was asked for
         self.deferred: list[str] = []  # idle imports waiting for such a run
         self.served = 0
+        #: Names of the installed pytest plugins' entry points (group ``pytest11``), read once.
+        self.entry_point_names = _entry_point_names() if role == "grader" else None
         self.wake_r, self.wake_w = os.pipe()
         os.set_blocking(self.wake_w, False)
         os.set_blocking(self.wake_r, False)
@@ -434,6 +480,7 @@ class _Server:
 
         if self.pycache is not None:
             _keep_rewritten_tests(self.pycache)
+        _skip_needless_pytest_work(self.entry_point_names)
 
         code = int(pytest.main(request["args"]))
         for stream in (sys.stdout, sys.stderr):

@@ -476,6 +476,47 @@ def failure_message(exc: BaseException | None, crash_message: str | None) -> str
     return text
 
 
+def _tracebacks_unshown(config: pytest.Config) -> bool:
+    """True when no failure's traceback is shown (``--tb=no``, as the runner asks): only
+    the crash line of each failure is read (the report's message, ``-ra``'s summary)."""
+    return config.getoption("tbstyle", "auto") == "no" and not config.getoption(
+        "fulltrace", False
+    )
+
+
+def _report_crash_only(item: pytest.Item) -> None:
+    """Make ``item``'s failure reports hold only the crash line pytest would have found.
+
+    pytest formats every failure's whole traceback (filtering its entries, reading their
+    source) although ``--tb=no`` never shows it: 7 % of a grading run's CPU for a
+    submission that fails a third of its tests (issue 29). The crash line is
+    ``ExceptionInfo._getreprcrash()`` whatever the style, so it is computed alone here.
+    Anything pytest formats its own way (a fixture not found, a conftest that failed to
+    import, an exception without a traceback) and a pytest without these internals
+    keep pytest's own formatting.
+    """
+    try:
+        from _pytest._code.code import ReprExceptionInfo, ReprTraceback
+        from _pytest.config import ConftestImportFailure
+        from _pytest.fixtures import FixtureLookupError
+    except ImportError:
+        return
+    full = item._repr_failure_py
+
+    def crash_only(excinfo, style=None):
+        if (
+            isinstance(excinfo.value, (ConftestImportFailure, FixtureLookupError))
+            or excinfo.tb is None
+            or not hasattr(excinfo, "_getreprcrash")
+        ):
+            return full(excinfo, style)
+        return ReprExceptionInfo(
+            reprtraceback=ReprTraceback([], None, "short"), reprcrash=excinfo._getreprcrash()
+        )
+
+    item._repr_failure_py = crash_only
+
+
 def _usage(proxies: list) -> dict | None:
     """The submission's time and the limits that cut it short, over its proxies (one a lab)."""
     usages = [p.usage() for p in proxies if callable(getattr(p, "usage", None))]
@@ -535,8 +576,11 @@ class GradingCollector:
             )
 
     def pytest_collection_finish(self, session: pytest.Session) -> None:
+        quiet = _tracebacks_unshown(self.config)
         for item in session.items:
             self._record(item)
+            if quiet:
+                _report_crash_only(item)
         self.write(exitstatus=None)
 
     @pytest.hookimpl(wrapper=True)

@@ -44,6 +44,10 @@ __all__ = [
 #: the time its pytest run and workers waited for a CPU (a backstop: a submission's own
 #: time is bounded by its budgets, see docs/grading.md).
 DEFAULT_TIMEOUT = 600.0
+#: pytest's default plugins that do nothing unless their option is given (``--doctest-*``,
+#: ``--junitxml``, ``--pastebin``, ``--setup-only``, ``--setup-plan``, ``--stepwise``),
+#: turned off in grading runs.
+_UNUSED_PLUGINS = ("doctest", "junitxml", "pastebin", "setuponly", "setupplan", "stepwise")
 #: pytest exit codes that mean the hidden tests ran (0: all passed, 1: some failed).
 _RAN = (0, 1)
 
@@ -158,6 +162,9 @@ def _pytest_command(
         "robolab.grading.running.pytest_plugin",
         "-p",
         "no:cacheprovider",
+        # Plugins that act only when their own option is given (none is): each registered
+        # plugin costs every run its fixture scan (issue 29). Fixtures a test may use stay.
+        *(arg for name in _UNUSED_PLUGINS for arg in ("-p", f"no:{name}")),
         "-q",
         "--tb=no",
         "--no-header",
