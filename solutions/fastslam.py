@@ -45,6 +45,7 @@ import numpy as np
 from robolab.fiducials import DT, as_robot, sqrt_psd
 from robolab.geometry import wrap_angle
 from robolab.validation import (
+    all_finite,
     as_array,
     as_observations,
     check_count,
@@ -699,11 +700,9 @@ def _check_update(update, what) -> None:
     ``what`` names the update in the message: a string, or a callable that makes it.
     """
     mean, cov, log_like = update
-    with np.errstate(over="ignore", invalid="ignore"):  # finite sums: finite terms (as _finite)
-        quick = np.isfinite(mean.sum()) and np.isfinite(cov.sum()) and not np.isnan(log_like.sum())
-    if not quick and not (
-        np.isfinite(mean).all() and np.isfinite(cov).all() and not np.isnan(log_like).any()
-    ):
+    with np.errstate(invalid="ignore"):  # -inf + inf: NaN, then checked entry by entry
+        no_nan = not np.isnan(log_like.sum()) or not np.isnan(log_like).any()
+    if not (all_finite(mean) and all_finite(cov) and no_nan):
         what = what() if callable(what) else what
         raise ValueError(
             f"{what}: the landmark estimate is not finite in float64 (a range or covariance "
@@ -806,13 +805,13 @@ def _check_state(state) -> dict:
         raise ValueError(f"state is missing {', '.join(missing)} (make it with init_particles)")
     poses = _poses(state["poses"])
     m = poses.shape[0]
-    means = _finite("state['means']", state["means"], ndim=3)
+    means = as_array("state['means']", state["means"], ndim=3, finite=True)
     k = means.shape[1]
     if means.shape != (m, k, 2):
         raise ValueError(
             f"state['means'] must have shape (M, K, 2) = ({m}, K, 2), got {means.shape}"
         )
-    covs = _finite("state['covs']", state["covs"], shape=(m, k, 2, 2))
+    covs = as_array("state['covs']", state["covs"], shape=(m, k, 2, 2), finite=True)
     seen = np.asarray(state["seen"])
     if seen.shape != (m, k) or seen.dtype != bool:
         raise ValueError(
@@ -824,18 +823,6 @@ def _check_state(state) -> dict:
     if abs(weights.sum() - 1.0) > 1e-6:
         raise ValueError(f"state['weights'] must sum to 1, got {weights.sum()}")
     return {"poses": poses, "means": means, "covs": covs, "seen": seen, "weights": weights}
-
-
-def _finite(name, value, **shape) -> np.ndarray:
-    """``as_array(name, value, finite=True, **shape)`` with one sum instead of an ``isfinite``
-    pass (and its boolean temporary) for a large array: a finite sum has finite terms; if the
-    sum is not finite (a NaN, an infinity or an overflow), ``as_array`` decides."""
-    arr = as_array(name, value, **shape)
-    with np.errstate(over="ignore", invalid="ignore"):
-        total = arr.sum()
-    if not np.isfinite(total):
-        as_array(name, arr, finite=True)
-    return arr
 
 
 def _observations(observations, n_landmarks) -> np.ndarray:

@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robolab.validation import as_array, as_poses, check_positive, check_probability_vector
+from robolab.validation import (
+    SUM_FIRST,
+    all_finite,
+    as_array,
+    as_poses,
+    check_positive,
+    check_probability_vector,
+)
 
 
 # -- as_array ------------------------------------------------------------------------------
@@ -127,3 +134,22 @@ def test_check_probability_vector_accepts_and_returns_float():
 def test_check_probability_vector_rejects(value, kwargs, match):
     with pytest.raises(ValueError, match=match):
         check_probability_vector("prior", value, **kwargs)
+
+
+@pytest.mark.parametrize("dtype", [np.float64, np.float32, np.complex128])
+@pytest.mark.parametrize("size", [0, 1, SUM_FIRST - 1, SUM_FIRST, 3 * SUM_FIRST + 7])
+def test_all_finite_agrees_with_isfinite_all(dtype, size):
+    """The sum-first shortcut answers as ``np.isfinite(a).all()``: a NaN or +-inf anywhere,
+    +inf and -inf together (a NaN sum), and finite entries whose sum overflows."""
+    rng = np.random.default_rng(size)
+    big = np.finfo(np.dtype(dtype).type(0).real.dtype).max
+    for bad in (None, np.nan, np.inf, -np.inf, "both", "overflow"):
+        a = rng.standard_normal(size).astype(dtype)
+        if size and bad == "both":
+            a[0], a[-1] = np.inf, -np.inf
+        elif size and bad == "overflow":
+            a[:] = big
+        elif size and bad is not None:
+            a[rng.integers(size)] = bad
+        assert all_finite(a) == bool(np.isfinite(a).all())
+        assert all_finite(a.reshape(-1, 1)[::-1]) == bool(np.isfinite(a).all())
