@@ -150,14 +150,11 @@ def run_delay(pid: int | str = "thread-self") -> float | None:
     """
     if pid == "thread-self":  # the calling thread's own file (a descriptor per thread)
         pid = f"self/task/{threading.get_native_id()}"
-    try:
-        return int(read_proc(f"/proc/{pid}/schedstat").split()[1]) / 1e9
-    except (OSError, IndexError, ValueError):
-        return None
+    return _delay_at(f"/proc/{pid}/schedstat")
 
 
 class AwakeClock:
-    """Wall time of a process *net of the time it waited for a CPU*: what a wall limit counts.
+    """Wall time of a process group *net of the time it waited for a CPU*: wall limits.
 
     On a loaded machine a process spends most of its wall time on the run queue,
     waiting for a core that other processes hold; that time says nothing about the
@@ -167,40 +164,83 @@ class AwakeClock:
     ``/proc/<pid>/schedstat`` cannot be read (no ``CONFIG_SCHED_INFO``, not Linux) the
     clock is plain wall time.
 
-    Only the main thread's waiting is left out: a worker blocked on a child or thread
-    that waits for a core counts that time (the CPU limits bound the child). The
-    reader of the clock may :meth:`excuse` time the process spent waiting for *it*
-    (a worker that has answered sleeps until the grader, itself waiting for a core,
-    reads the answer).
+    Waiting is read per task: every thread of the process and every thread or process
+    created in its process group since :meth:`restart` (found among the new pids, as
+    :class:`GroupClock` finds members). Between two readings the clock leaves out the
+    longest wait of any one task, never more than the time between them: a worker
+    blocked on a thread or a child that waits for a core is waiting for a core, so
+    computing in a thread or a child is charged as computing in the main thread is.
+    The longest, not the sum, because two tasks waiting at once are one wait; it can
+    leave out more than the group waited only while another of its tasks ran, which the
+    CPU limits charge. The reader of the clock may :meth:`excuse` time the process spent
+    waiting for *it* (a worker that has answered sleeps until the grader, itself
+    waiting for a core, reads the answer).
     """
 
     def __init__(self, pid: int) -> None:
         self.pid = pid
-        self._last = 0.0  # the last reading (a dead process keeps its last one)
-        self._others: dict[int, list[float]] = {}  # pid: [first reading, last reading]
+        self._groups: set[int] = set()
+        self._readings: dict[str, float] = {}  # a task's schedstat path: its last run delay
         self.restart()
 
-    def _delay(self) -> float:
-        delay = run_delay(self.pid)
-        if delay is not None:
-            self._last = delay
-        for pid, readings in self._others.items():
-            if (delay := run_delay(pid)) is not None:
-                readings[1] = delay
-        return self._last + sum(last - first for first, last in self._others.values())
+    def _read_all(self) -> float:
+        """Read every known task; the longest wait of one since its last reading."""
+        longest = 0.0
+        for path, before in list(self._readings.items()):
+            delay = _delay_at(path)
+            if delay is None:  # gone: what it waited since its last reading is not known
+                del self._readings[path]
+                continue
+            longest = max(longest, delay - before)
+            self._readings[path] = delay
+        now = last_pid()
+        if now != self._last_pid:
+            if now < 0 or self._last_pid < 0 or not 0 < now - self._last_pid <= _MAX_RANGE:
+                for pgid in self._groups:  # the new pids are not known: from now on
+                    self._add_threads(pgid)
+            else:
+                for tid in range(self._last_pid + 1, now + 1):
+                    fields = _stat_once(tid)  # a thread's number has a stat file too
+                    if fields is not None and len(fields) > 2 and int(fields[2]) in self._groups:
+                        path = f"/proc/{tid}/schedstat"
+                        if (delay := _delay_at(path)) is not None:
+                            longest = max(longest, delay)  # born since the last reading
+                            self._readings[path] = delay
+            self._last_pid = now
+        return longest
+
+    def _add_threads(self, pid: int) -> None:
+        """Read ``pid``'s threads from now on (those already read keep their readings)."""
+        try:
+            tids = os.listdir(f"/proc/{pid}/task")
+        except OSError:
+            tids = [str(pid)]
+        for tid in tids:
+            path = f"/proc/{pid}/task/{tid}/schedstat"
+            if path not in self._readings and (delay := _delay_at(path)) is not None:
+                self._readings[path] = delay
+
+    def _sample(self) -> None:
+        now = time.monotonic()
+        self._waited += min(self._read_all(), now - self._sampled)
+        self._sampled = now
 
     def restart(self) -> None:
         """Count from now."""
-        self._wall = time.monotonic()
-        self._others.clear()
-        self._base = self._delay()
-        self._excused = 0.0
+        self._wall = self._sampled = time.monotonic()
+        self._last_pid = last_pid()
+        self._readings.clear()
+        self._groups = {_pgid(self.pid)}
+        self._add_threads(self.pid)
+        self._waited = self._excused = 0.0
 
     def watch(self, pid: int) -> None:
-        """Also leave out the time ``pid`` waits for a CPU from now on (a process this one
-        waits for: the grader's pytest run waits for its workers)."""
-        if pid not in self._others and (delay := run_delay(pid)) is not None:
-            self._others[pid] = [delay, delay]
+        """Also leave out the time ``pid`` (its threads, its process group) waits for a CPU
+        from now on: a process this one waits for (the grader's pytest run waits for its
+        workers)."""
+        self._sample()  # what was waited so far is read without the new tasks
+        self._groups.add(_pgid(pid))
+        self._add_threads(pid)
 
     def excuse(self, seconds: float) -> None:
         """Leave ``seconds`` out: the process waited for the reader, who waited for a CPU."""
@@ -208,8 +248,22 @@ class AwakeClock:
 
     def elapsed(self) -> float:
         """Seconds since :meth:`restart`, less the time spent waiting for a CPU meanwhile."""
-        wall = time.monotonic() - self._wall
-        return max(wall - max(self._delay() - self._base, 0.0) - self._excused, 0.0)
+        self._sample()
+        return max(self._sampled - self._wall - self._waited - self._excused, 0.0)
+
+
+def _delay_at(path: str) -> float | None:
+    """The run delay (seconds) in a ``schedstat`` file; None when it cannot be read."""
+    try:
+        return int(read_proc(path).split()[1]) / 1e9
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def _pgid(pid: int) -> int:
+    """``pid``'s process group (``pid`` itself when it cannot be read)."""
+    fields = _stat(pid)
+    return int(fields[2]) if fields is not None and len(fields) > 2 else pid
 
 
 #: Most new pids checked one by one; beyond that (or after a wrap) the whole of /proc is read.
@@ -217,7 +271,12 @@ _MAX_RANGE = 4096
 
 
 def group_members(pgid: int, pids: range | None = None) -> list[Member]:
-    """Every process whose process group is ``pgid``, among ``pids`` (default: all of /proc)."""
+    """Every process whose process group is ``pgid``, among ``pids`` (default: all of /proc).
+
+    A number in ``pids`` may be a thread's: ``/proc/<tid>/stat`` exists, unlisted, and
+    reads as its whole process (the process's CPU time; a signal sent to it goes to the
+    process), so only thread-group leaders are members.
+    """
     candidates = (
         (int(e.name) for e in os.scandir("/proc") if e.name.isdigit()) if pids is None else pids
     )
@@ -225,8 +284,21 @@ def group_members(pgid: int, pids: range | None = None) -> list[Member]:
     for pid in candidates:
         fields = _stat_once(pid)
         if fields is not None and len(fields) > 19 and int(fields[2]) == pgid:
-            found.append(_member(pid, fields))
+            if pids is None or _leads_its_threads(pid):  # /proc lists processes only
+                found.append(_member(pid, fields))
     return found
+
+
+def _leads_its_threads(pid: int) -> bool:
+    """Whether ``pid`` is a process (its thread group's leader), not another thread."""
+    try:
+        with open(f"/proc/{pid}/status", "rb") as f:
+            for line in f:
+                if line.startswith(b"Tgid:"):
+                    return int(line.split()[1]) == pid
+    except (OSError, ValueError, IndexError):
+        pass
+    return False
 
 
 @dataclass

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import threading
@@ -50,3 +51,26 @@ def test_at_most_a_bounded_number_of_files_stay_open():
             proc.kill()
             proc.wait()
     assert len(processes._open) <= processes._OPEN_MAX
+
+
+def test_a_thread_is_not_a_member_of_its_process_group():
+    """``/proc/<tid>/stat`` exists for a thread and reads as its whole process: a scan of
+    new pids that took it for a process would charge the process's CPU time twice and
+    kill the process when it swept the "member" away."""
+    program = "import threading, sys; threading.Thread(target=sys.stdin.read).start(); print(1)"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", program],
+        start_new_session=True,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+    )
+    try:
+        proc.stdout.readline()  # its second thread is running
+        tids = [int(t) for t in os.listdir(f"/proc/{proc.pid}/task")]
+        assert len(tids) == 2
+        scanned = processes.group_members(proc.pid, range(min(tids), max(tids) + 1))
+        assert [m.pid for m in scanned] == [proc.pid]
+        assert [m.pid for m in processes.group_members(proc.pid)] == [proc.pid]
+    finally:
+        proc.kill()
+        proc.wait()

@@ -15,6 +15,7 @@ import math
 import os
 import subprocess
 import sys
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -79,9 +80,9 @@ def _spinner(cpu: int) -> subprocess.Popen:
     return proc
 
 
-def _on_cpu(pid: int) -> float:
-    """Seconds ``pid``'s main thread has run (first field of its schedstat)."""
-    with open(f"/proc/{pid}/schedstat", "rb") as f:
+def _on_cpu(task: int | str) -> float:
+    """Seconds a process's main thread (a pid) or a task (its schedstat path) has run."""
+    with open(task if isinstance(task, str) else f"/proc/{task}/schedstat", "rb") as f:
         return int(f.read().split()[0]) / 1e9
 
 
@@ -104,6 +105,66 @@ def test_the_awake_clock_leaves_out_waiting_for_a_cpu():
             proc.wait()
     assert ran >= 0.5 and waited is not None and waited > 0
     assert abs(awake - ran) <= 0.05 + 0.1 * ran, (awake, ran)
+
+
+#: A program whose main thread waits for a thread (or a forked child, argv[1]) that
+#: computes for ever, started once the program is told to.
+_DELEGATE = """
+import os, sys, threading
+def spin():
+    while True:
+        pass
+sys.stdin.readline()
+if sys.argv[1] == "thread":
+    worker = threading.Thread(target=spin)
+    worker.start()
+    worker.join()
+elif os.fork() == 0:
+    spin()
+else:
+    os.wait()
+"""
+
+
+def _helper_task(pid: int) -> str:
+    """The schedstat path of ``pid``'s other thread or its child, once there is one."""
+    while True:
+        tasks = [t for t in os.listdir(f"/proc/{pid}/task") if t != str(pid)]
+        with open(f"/proc/{pid}/task/{pid}/children") as f:
+            children = f.read().split()
+        if tasks or children:
+            return f"/proc/{(tasks or children)[0]}/schedstat"
+        time.sleep(0.001)
+
+
+@pytest.mark.skipif(processes.run_delay(os.getpid()) is None, reason="no /proc/<pid>/schedstat")
+@pytest.mark.parametrize("where", ["thread", "child"])
+def test_a_thread_or_child_waiting_for_a_cpu_is_waiting_too(where):
+    """A process whose main thread waits for a thread (or a child) that computes beside a
+    busy loop on its core: the wall limits count the half the computation ran, as when
+    the main thread computes itself, not the half it waited for the core."""
+    cpu = min(os.sched_getaffinity(0))
+    delegating = subprocess.Popen(
+        [sys.executable, "-c", _DELEGATE, where], start_new_session=True, stdin=subprocess.PIPE
+    )
+    rival = _spinner(cpu)
+    try:
+        os.sched_setaffinity(delegating.pid, {cpu})  # the thread or child inherits it
+        clock = processes.AwakeClock(delegating.pid)
+        delegating.stdin.write(b"go\n")
+        delegating.stdin.flush()
+        task = _helper_task(delegating.pid)
+        start = _on_cpu(task)
+        while _on_cpu(task) - start < 0.5:
+            os.sched_yield()
+        awake, ran = clock.elapsed(), _on_cpu(task) - start
+        waited = processes.run_delay(task.split("/")[2])
+    finally:
+        for proc in (delegating, rival):
+            proc.kill()
+            proc.wait()
+    assert waited is not None and waited > 0.2  # it did wait for the core
+    assert abs(awake - ran) <= 0.05 + 0.1 * ran, (awake, ran, waited)
 
 
 def test_a_sleeping_process_is_awake_all_along():

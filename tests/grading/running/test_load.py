@@ -203,6 +203,61 @@ def _alive(pid: int) -> bool:
         return False
 
 
+DELEGATING = """
+import os
+import threading
+import time
+
+
+def burn(seconds):
+    end = time.thread_time() + seconds
+    while time.thread_time() < end:
+        pass
+
+
+def in_main(seconds):
+    burn(seconds)
+    return seconds
+
+
+def in_thread(seconds):
+    worker = threading.Thread(target=burn, args=(seconds,))
+    worker.start()
+    worker.join()
+    return seconds
+
+
+def in_child(seconds):
+    pid = os.fork()
+    if pid == 0:
+        burn(seconds)
+        os._exit(0)
+    os.waitpid(pid, 0)
+    return seconds
+"""
+
+
+def test_computing_in_a_thread_or_child_is_charged_as_in_the_main_thread(tmp_path, busy_loops):
+    """Beside a busy loop on every core, a call that computes 1 s in its main thread, in a
+    thread or in a forked child is charged about 1 s on the wall limits' clock: the time
+    its helper waited for a core is the machine's, as the main thread's is."""
+    from dataclasses import replace
+
+    from robolab.grading.running.proxy import open_submission
+    from tests.grading import TEST_LIMITS, write_notebook
+
+    path = write_notebook(tmp_path / "delegating.ipynb", DELEGATING, lab=None)
+    limits = replace(TEST_LIMITS, cpu_seconds=20, wall_seconds=60, total_wall_seconds=300)
+    limits = replace(limits, total_cpu_seconds=300)
+    with open_submission(path, limits=limits) as sub:
+        for name in ("in_main", "in_thread", "in_child"):
+            awake, cpu = sub.spent_seconds, sub.spent_cpu_seconds
+            assert getattr(sub, name)(1.0) == 1.0
+            awake, cpu = sub.spent_seconds - awake, sub.spent_cpu_seconds - cpu
+            print(name, awake, cpu, sub.limits_hit())
+            assert cpu >= 0.98 and awake <= cpu + 0.5, (name, awake, cpu)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_stops_a_batch_under_load(tmp_path, busy_loops, sig):

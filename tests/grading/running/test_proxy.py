@@ -304,3 +304,19 @@ def test_a_forgotten_proxy_does_not_leave_its_worker_running(tmp_path):
     gc.collect()
     assert process.poll() is not None
     assert not base.exists()
+
+
+def test_threads_that_outlive_a_call_are_the_submissions_own(tmp_path):
+    """A pool of threads made at load serves every call: the threads are not processes
+    the call left behind (which the sweep after each call kills), nor charged again."""
+    path = write_notebook(
+        tmp_path / "pool.ipynb",
+        "from concurrent.futures import ThreadPoolExecutor\n"
+        "POOL = ThreadPoolExecutor(2)\n"
+        "def square(x):\n"
+        "    return POOL.submit(lambda: x * x).result()\n",
+        lab=None,
+    )
+    with open_submission(path, limits=TEST_LIMITS) as sub:
+        assert [sub.square(i) for i in range(6)] == [i * i for i in range(6)]
+        assert sub.limits_hit() == [] and sub.spent_cpu_seconds < 1
