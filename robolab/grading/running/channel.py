@@ -55,6 +55,10 @@ decode_clock = time.thread_time
 #: write and one wake-up of the other side each.
 PIPE_BYTES = 1 << 20
 
+#: Threads of numba's pool in a worker, whatever the machine's cores (a student may
+#: compile with ``parallel=True``); their CPU time is charged as any other.
+NUMBA_THREADS = 2
+
 
 def _widen(fd: int) -> None:
     """Ask for a :data:`PIPE_BYTES` pipe (a smaller one only costs more wake-ups)."""
@@ -169,6 +173,10 @@ class Worker:
             "OPENBLAS_NUM_THREADS": "1",
             "OMP_NUM_THREADS": "1",
             "MKL_NUM_THREADS": "1",
+            # numba's thread pool (a student's prange) the same size on every machine:
+            # by default one thread per core, so a big grading machine would meet the
+            # process limit, and a parallel sum's rounding would depend on the machine.
+            "NUMBA_NUM_THREADS": str(NUMBA_THREADS),
             # Ray casting on its numpy path: numba's on-disk kernel cache cannot be
             # written from here (read-only package, fresh HOME), so every worker would
             # compile the kernels anew (seconds of CPU); the ranges are the same.

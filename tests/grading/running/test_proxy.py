@@ -320,3 +320,30 @@ def test_threads_that_outlive_a_call_are_the_submissions_own(tmp_path):
     with open_submission(path, limits=TEST_LIMITS) as sub:
         assert [sub.square(i) for i in range(6)] == [i * i for i in range(6)]
         assert sub.limits_hit() == [] and sub.spent_cpu_seconds < 1
+
+
+def test_numba_parallel_code_gets_the_same_pool_on_every_machine(tmp_path):
+    """A student's ``prange`` runs on a pool of a fixed size (not one thread per core of
+    the grading machine, which could meet the process limit and changes a parallel sum's
+    rounding), and the pool's threads live from call to call."""
+    from robolab.grading.running.channel import NUMBA_THREADS
+
+    path = write_notebook(
+        tmp_path / "prange.ipynb",
+        "import numba\n"
+        "import numpy as np\n"
+        "@numba.njit(parallel=True)\n"
+        "def _total(x):\n"
+        "    s = 0.0\n"
+        "    for i in numba.prange(x.shape[0]):\n"
+        "        s += x[i]\n"
+        "    return s\n"
+        "def total(n):\n"
+        "    return _total(np.arange(n, dtype=float)), numba.get_num_threads()\n",
+        lab=None,
+    )
+    limits = replace(TEST_LIMITS, cpu_seconds=30, wall_seconds=60)
+    with open_submission(path, limits=limits) as sub:
+        for n in (10, 1000, 100_000):
+            assert sub.total(n) == (n * (n - 1) / 2, NUMBA_THREADS)
+        assert sub.limits_hit() == []
