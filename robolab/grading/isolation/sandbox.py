@@ -269,7 +269,10 @@ def apply(plan: SandboxPlan) -> SandboxReport:
         else:
             report.notes.append(f"no mount namespace: {os.strerror(ctypes.get_errno())}")
 
-    _set_limits(plan)
+    # Without a uid or a user namespace of its own, the worker's processes and threads
+    # are counted with everything else its user runs (a desktop session: hundreds).
+    own_count = uid is not None or report.user_namespace  # (root, kept: no limit at all)
+    _set_limits(plan, already=0 if own_count else tasks_of_user(os.getuid()))
 
     if uid is not None:
         if not report.view:
@@ -454,7 +457,28 @@ def _write_seeds(workdir: str, seeds: dict[str, bytes]) -> None:
         target.write_bytes(data)
 
 
-def _set_limits(plan: SandboxPlan) -> None:
+def tasks_of_user(uid: int) -> int:
+    """Processes and threads of ``uid`` now: what ``RLIMIT_NPROC`` counts for it."""
+    count = 0
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry.name}/status", "rb") as f:
+                status = f.read()
+        except OSError:
+            continue  # gone meanwhile
+        try:
+            real = status[status.index(b"\nUid:") + 5 :].split(None, 1)[0]
+            if int(real) == uid:
+                count += int(status[status.index(b"\nThreads:") + 9 :].split(None, 1)[0])
+        except ValueError:  # no such line
+            continue
+    return count
+
+
+def _set_limits(plan: SandboxPlan, already: int = 0) -> None:
+    """The resource limits; ``already``: tasks the process limit counts besides the worker's."""
     cpu_soft = max(1, int(plan.cpu_seconds + 0.999))
     cpu_hard = max(cpu_soft + 1, int(plan.cpu_lifetime_seconds))
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
@@ -462,7 +486,8 @@ def _set_limits(plan: SandboxPlan) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (plan.memory_bytes, plan.memory_bytes))
     resource.setrlimit(resource.RLIMIT_FSIZE, (MAX_FILE_BYTES, MAX_FILE_BYTES))
     resource.setrlimit(resource.RLIMIT_NOFILE, (MAX_OPEN_FILES, MAX_OPEN_FILES))
-    resource.setrlimit(resource.RLIMIT_NPROC, (plan.max_processes, plan.max_processes))
+    nproc = plan.max_processes + already
+    resource.setrlimit(resource.RLIMIT_NPROC, (nproc, nproc))
 
 
 def _others_can_reach(path: str) -> bool:

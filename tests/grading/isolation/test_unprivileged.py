@@ -147,3 +147,11 @@ def test_scratch_space_is_capped(attacks):
     if written is not None:
         assert written <= sandbox.WORKDIR_BYTES
     assert results["still_serves"] == "ok"
+
+
+def test_the_process_limit_counts_the_workers_own_processes(attacks):
+    """Without a uid or a user namespace of its own, the worker shares its user's process
+    count with everything else that user runs: its limit is on top of those, so a
+    submission can still start a thread or a child however many the user runs."""
+    _, results = attacks
+    assert results["fork_beside_many"] == "ok"

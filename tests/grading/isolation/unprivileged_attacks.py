@@ -3,7 +3,8 @@
 Usage: python unprivileged_attacks.py MODE OUT_JSON, MODE being "default" (the
 sandbox as planned: a user namespace when the kernel allows one) or
 "landlock" (no namespaces: Landlock and seccomp only). Everything here is
-bounded: a few children, at most 96 MiB written.
+bounded: a few children (and 80 sleeping processes of the grading user's), at most
+96 MiB written.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import json
 import os
 import resource
 import socket
+import subprocess
 import sys
 import tempfile
 import time
@@ -69,7 +71,21 @@ def fill_scratch(n):
     except OSError as exc:
         return written, type(exc).__name__
     return written, None
+
+def fork_and_thread():
+    import threading
+    pid = os.fork()
+    if pid == 0:
+        os._exit(0)
+    os.waitpid(pid, 0)
+    thread = threading.Thread(target=len, args=("",))
+    thread.start()
+    thread.join()
 """
+
+#: Processes the grading user runs besides the grader (a desktop session runs hundreds):
+#: more than the worker's own process limit, which must count the worker's alone.
+OTHER_PROCESSES = 80
 
 
 def outcome(function, *args) -> str:
@@ -130,6 +146,14 @@ def main(mode: str, out: Path) -> None:
         except StudentCodeError as exc:
             results["fill"] = [None, exc.kind]
         results["still_serves"] = outcome(sub.read, "/dev/null")
+    others = [subprocess.Popen(["sleep", "600"]) for _ in range(OTHER_PROCESSES)]
+    try:  # a fresh worker, started while its user runs many other processes
+        with open_submission(notebook, limits=limits) as sub:
+            results["fork_beside_many"] = outcome(sub.fork_and_thread)
+    finally:
+        for proc in others:
+            proc.kill()
+            proc.wait()
     results["daemon_alive_after_close"] = alive(grandchild)
     try:
         udp4.recvfrom(100)
