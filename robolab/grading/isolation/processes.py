@@ -167,7 +167,7 @@ class AwakeClock:
     Waiting is read per task: every thread of the process and every thread or process
     created in its process group since :meth:`restart` (found among the new pids, as
     :class:`GroupClock` finds members). Between two readings the clock leaves out the
-    longest wait of any one task, never more than the time between them: a worker
+    longest wait of any one task that the kernel recorded meanwhile: a worker
     blocked on a thread or a child that waits for a core is waiting for a core, so
     computing in a thread or a child is charged as computing in the main thread is.
     The longest, not the sum, because two tasks waiting at once are one wait; it can
@@ -221,9 +221,10 @@ class AwakeClock:
                 self._readings[path] = delay
 
     def _sample(self) -> None:
-        now = time.monotonic()
-        self._waited += min(self._read_all(), now - self._sampled)
-        self._sampled = now
+        # Not capped at the time since the last reading: the kernel adds a wait to a
+        # task's run delay when the wait ends (the task gets a core), all at once.
+        self._waited += self._read_all()
+        self._sampled = time.monotonic()
 
     def restart(self) -> None:
         """Count from now."""
