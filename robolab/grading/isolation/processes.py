@@ -41,7 +41,9 @@ __all__ = [
     "group_members",
     "last_pid",
     "read_proc",
+    "pids_between",
     "run_delay",
+    "status_values",
 ]
 
 #: Environment variable naming a file where the proxy appends each worker's pid: the
@@ -194,19 +196,18 @@ class AwakeClock:
             longest = max(longest, delay - before)
             self._readings[path] = delay
         now = last_pid()
-        if now != self._last_pid:
-            if now < 0 or self._last_pid < 0 or not 0 < now - self._last_pid <= _MAX_RANGE:
-                for pgid in self._groups:  # the new pids are not known: from now on
-                    self._add_threads(pgid)
-            else:
-                for tid in range(self._last_pid + 1, now + 1):
-                    fields = _stat_once(tid)  # a thread's number has a stat file too
-                    if fields is not None and len(fields) > 2 and int(fields[2]) in self._groups:
-                        path = f"/proc/{tid}/schedstat"
-                        if (delay := _delay_at(path)) is not None:
-                            longest = max(longest, delay)  # born since the last reading
-                            self._readings[path] = delay
-            self._last_pid = now
+        new = pids_between(self._last_pid, now)
+        if new is None:
+            for pgid in self._groups:  # the new pids are not known: from now on
+                self._add_threads(pgid)
+        for tid in new or ():
+            fields = _stat_once(tid)  # a thread's number has a stat file too
+            if fields is not None and len(fields) > 2 and int(fields[2]) in self._groups:
+                path = f"/proc/{tid}/schedstat"
+                if (delay := _delay_at(path)) is not None:
+                    longest = max(longest, delay)  # born since the last reading
+                    self._readings[path] = delay
+        self._last_pid = now
         return longest
 
     def _add_threads(self, pid: int) -> None:
@@ -271,6 +272,36 @@ def _pgid(pid: int) -> int:
 _MAX_RANGE = 4096
 
 
+def pids_between(since: int, now: int) -> range | None:
+    """The pids allocated after ``since`` up to ``now`` (two :func:`last_pid` readings);
+    None when unknown (a reading failed, the counter wrapped, or more than
+    :data:`_MAX_RANGE`); empty when none were."""
+    if now < 0 or since < 0 or not 0 <= now - since <= _MAX_RANGE:
+        return None
+    return range(since + 1, now + 1)
+
+
+def status_values(pid: int | str, *names: bytes) -> list[int] | None:
+    """The first number of each named line of ``/proc/<pid>/status`` (``b"Tgid"``,
+    ``b"Uid"`` -- the real uid --, ``b"Threads"``); None when it cannot be read or
+    lacks one of them."""
+    try:
+        with open(f"/proc/{pid}/status", "rb") as f:
+            status = f.read()
+    except OSError:
+        return None
+    values = []
+    for name in names:
+        start = status.find(b"\n" + name + b":")
+        if start < 0:
+            return None
+        try:
+            values.append(int(status[start + len(name) + 2 :].split(None, 1)[0]))
+        except (ValueError, IndexError):
+            return None
+    return values
+
+
 def group_members(pgid: int, pids: range | None = None) -> list[Member]:
     """Every process whose process group is ``pgid``, among ``pids`` (default: all of /proc).
 
@@ -285,21 +316,10 @@ def group_members(pgid: int, pids: range | None = None) -> list[Member]:
     for pid in candidates:
         fields = _stat_once(pid)
         if fields is not None and len(fields) > 19 and int(fields[2]) == pgid:
-            if pids is None or _leads_its_threads(pid):  # /proc lists processes only
+            # /proc lists processes only; a number from ``pids`` is one when it leads its threads
+            if pids is None or status_values(pid, b"Tgid") == [pid]:
                 found.append(_member(pid, fields))
     return found
-
-
-def _leads_its_threads(pid: int) -> bool:
-    """Whether ``pid`` is a process (its thread group's leader), not another thread."""
-    try:
-        with open(f"/proc/{pid}/status", "rb") as f:
-            for line in f:
-                if line.startswith(b"Tgid:"):
-                    return int(line.split()[1]) == pid
-    except (OSError, ValueError, IndexError):
-        pass
-    return False
 
 
 @dataclass
@@ -361,10 +381,7 @@ class GroupClock:
 
     def _new_pids(self) -> range | None:
         """The pids allocated since the last sweep, None when unknown; empty when none were."""
-        now = last_pid()
-        if now < 0 or self._swept_pid < 0 or not 0 <= now - self._swept_pid <= _MAX_RANGE:
-            return None
-        return range(self._swept_pid + 1, now + 1)
+        return pids_between(self._swept_pid, last_pid())
 
     def _others(self) -> list[Member]:
         # Every member but the leader was killed at the last sweep, so only processes

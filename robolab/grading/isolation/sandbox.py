@@ -43,7 +43,7 @@ import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from robolab.grading.isolation import seccomp
+from robolab.grading.isolation import processes, seccomp
 from robolab.grading.isolation.landlock import landlock_abi, restrict
 from robolab.grading.isolation.libc import SandboxError, _check, _libc
 
@@ -461,19 +461,10 @@ def tasks_of_user(uid: int) -> int:
     """Processes and threads of ``uid`` now: what ``RLIMIT_NPROC`` counts for it."""
     count = 0
     for entry in os.scandir("/proc"):
-        if not entry.name.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry.name}/status", "rb") as f:
-                status = f.read()
-        except OSError:
-            continue  # gone meanwhile
-        try:
-            real = status[status.index(b"\nUid:") + 5 :].split(None, 1)[0]
-            if int(real) == uid:
-                count += int(status[status.index(b"\nThreads:") + 9 :].split(None, 1)[0])
-        except ValueError:  # no such line
-            continue
+        if entry.name.isdigit():
+            values = processes.status_values(entry.name, b"Uid", b"Threads")  # None: gone
+            if values is not None and values[0] == uid:
+                count += values[1]
     return count
 
 
